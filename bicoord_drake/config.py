@@ -1,0 +1,71 @@
+"""Validated, documented user-facing settings (pydantic).
+
+Every setting has a default; a bad value raises a ``pydantic.ValidationError`` that names the
+field. :func:`parse_resolution` turns ``"320x240"`` into ``(320, 240)`` for the CLIs.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+CAMERA_NAMES = ("head_camera", "left_camera", "right_camera")
+CameraName = Literal["head_camera", "left_camera", "right_camera"]
+
+
+def parse_resolution(text: str) -> tuple[int, int]:
+    """'WxH' -> (W, H); a clear ValueError otherwise."""
+    m = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    if not m:
+        raise ValueError(f"resolution must look like WIDTHxHEIGHT (e.g. 320x240), got {text!r}")
+    w, h = int(m.group(1)), int(m.group(2))
+    if not (16 <= w <= 4096 and 16 <= h <= 4096):
+        raise ValueError(f"resolution {w}x{h} out of range: each side must be in [16, 4096]")
+    return w, h
+
+
+class CameraConfig(BaseModel):
+    """Which cameras render, at what size, with or without depth."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    names: tuple[CameraName, ...] = CAMERA_NAMES
+    width: int = Field(320, ge=16, le=4096)
+    height: int = Field(240, ge=16, le=4096)
+    depth: bool = False
+    head_fov_y_deg: float = Field(37.0, gt=5, lt=150)
+    wrist_fov_y_deg: float = Field(72.0, gt=5, lt=150)
+    depth_range: tuple[float, float] = (0.02, 3.0)
+
+    @field_validator("names")
+    @classmethod
+    def _unique(cls, v: tuple[str, ...]) -> tuple[str, ...]:
+        if len(set(v)) != len(v):
+            raise ValueError("camera names must be unique")
+        return v
+
+
+class StationConfig(BaseModel):
+    """How the simulated cell is built and driven.
+
+    Defaults come from measurements on a 2-core CPU machine (see benchmarks/ and docs): SAP with
+    hydroelastic contact holds a grasped cube without pivoting; a 1/300 s step keeps a 15 Hz
+    control period an integer number of steps and runs faster than twice real time.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    embodiment: str = "aloha_viperx"
+    time_step: float = Field(1 / 300, gt=0, le=0.01, description="plant time step, s")
+    contact_model: Literal["hydroelastic_with_fallback", "point"] = "hydroelastic_with_fallback"
+    control_rate: float = Field(15.0, gt=0, le=1000, description="control/recording rate, Hz")
+    gravity_compensation: bool = True
+    kp_scale: float = Field(1.0, gt=0, le=100, description="scales every arm PD stiffness")
+    render: bool = True
+    cameras: CameraConfig = CameraConfig()
+
+    @property
+    def control_period(self) -> float:
+        return 1.0 / self.control_rate

@@ -1,0 +1,570 @@
+"""Arm + gripper descriptions (pydantic) and their SDFormat generator.
+
+An :class:`Embodiment` is pure data: one :class:`ArmSpec` (links, six revolute joints, a parallel
+gripper), the two base poses, the home configuration and control limits. :func:`arm_sdf` turns it
+into an SDFormat model string; the station parses one model per side (``left_arm``,
+``right_arm``). A second robot is a second ``Embodiment`` value registered in
+:data:`EMBODIMENTS`; nothing else needs to change.
+
+The default, :func:`aloha_viperx`, is two ViperX 300s arms (the ALOHA / AgileX layout) with the
+public ViperX 300s kinematics, limits and link inertias, side by side behind the table facing +y.
+
+Gripper convention: each finger joint's position is the distance from the gripper's midplane to
+that finger's inner pad surface, so the jaw gap is twice the finger position. A gripper opening
+command g in [0, 1] maps linearly onto [finger_min, finger_max]. The two fingers are coupled by a
+constraint (the right finger mirrors the left) and only the left finger is actuated, under a force
+limit, so a closing gripper stops at the object.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+import trimesh
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from bicoord_drake.models.geometry import (
+    ContactProps,
+    Pose,
+    Primitive,
+    Rgba,
+    Vec3,
+    export_obj,
+    sdf_collision,
+    sdf_inertial,
+    sdf_mesh_visual,
+    segment,
+)
+
+Side = Literal["left", "right"]
+SIDES: tuple[Side, Side] = ("left", "right")
+
+
+class LinkSpec(BaseModel):
+    """A rigid link: inertia about its centre of mass, collision primitives, visual primitives."""
+
+    model_config = ConfigDict(frozen=True)
+
+    name: str
+    mass: float = Field(gt=0)
+    com: Vec3 = (0.0, 0.0, 0.0)
+    inertia_diag: Vec3
+    collision: tuple[Primitive, ...] = ()
+    visual: tuple[Primitive, ...] = ()
+    color: Rgba = (0.15, 0.15, 0.17, 1.0)
+
+
+class JointSpec(BaseModel):
+    """A revolute arm joint; `origin` is the child frame's pose in the parent link frame."""
+
+    model_config = ConfigDict(frozen=True)
+
+    name: str
+    parent: str
+    child: str
+    origin: Pose
+    axis: Vec3
+    lower: float
+    upper: float
+    velocity_limit: float = Field(gt=0, description="rad/s, used by planning")
+    acceleration_limit: float = Field(gt=0, description="rad/s^2, used by planning")
+    jerk_limit: float = Field(gt=0, description="rad/s^3, used by planning")
+    effort_limit: float = Field(gt=0, description="N m, enforced by the actuator")
+    damping: float = Field(0.0, ge=0, description="viscous joint damping, N m s/rad")
+    kp: float = Field(gt=0, description="default PD stiffness, N m/rad")
+    kd: float = Field(ge=0, description="default PD damping, N m s/rad")
+
+    @model_validator(mode="after")
+    def _limits_ordered(self) -> JointSpec:
+        if not self.lower < self.upper:
+            raise ValueError(f"joint {self.name}: lower limit must be below upper limit")
+        return self
+
+
+class GripperSpec(BaseModel):
+    """A parallel-jaw gripper on the last arm link (`mount` link), fingers moving along its y."""
+
+    model_config = ConfigDict(frozen=True)
+
+    finger_origin_x: float = Field(description="finger joint origin along the mount link x")
+    finger_min: float = Field(gt=0, description="finger position when closed (half jaw gap), m")
+    finger_max: float = Field(gt=0, description="finger position when open (half jaw gap), m")
+    force_limit: float = Field(gt=0, description="closing force limit of the actuated finger, N")
+    finger_kp: float = Field(gt=0)
+    finger_kd: float = Field(ge=0)
+    finger_velocity_limit: float = Field(0.2, gt=0, description="m/s, used by planning")
+    finger_mass: float = Field(gt=0)
+    finger_length: float = Field(gt=0, description="finger plate length along x, m")
+    finger_height: float = Field(gt=0, description="finger plate height along z, m")
+    finger_thickness: float = Field(gt=0)
+    pad_length: float = Field(gt=0)
+    pad_thickness: float = Field(gt=0)
+    pad_height: float = Field(gt=0)
+    pad_friction: float = Field(1.0, gt=0)
+    pad_modulus: float = Field(1e6, gt=0, description="hydroelastic modulus of the pads, Pa")
+    finger_color: Rgba = (0.2, 0.2, 0.22, 1.0)
+    pad_color: Rgba = (0.85, 0.45, 0.1, 1.0)
+
+    @model_validator(mode="after")
+    def _travel_ordered(self) -> GripperSpec:
+        if not self.finger_min < self.finger_max:
+            raise ValueError("gripper: finger_min must be below finger_max")
+        return self
+
+    @property
+    def tcp_x(self) -> float:
+        """TCP x in the mount link: midway between the pads, at the pads' centre."""
+        return self.finger_origin_x + self.finger_length - self.pad_length / 2
+
+    def finger_position(self, opening: float | np.ndarray) -> float | np.ndarray:
+        """Opening command in [0, 1] -> finger joint position (half the jaw gap)."""
+        return self.finger_min + np.clip(opening, 0.0, 1.0) * (self.finger_max - self.finger_min)
+
+    def opening(self, finger_position: float | np.ndarray) -> float | np.ndarray:
+        """Finger joint position -> opening in [0, 1] (not clipped: a blocked finger reads > 0)."""
+        return (finger_position - self.finger_min) / (self.finger_max - self.finger_min)
+
+
+class ArmSpec(BaseModel):
+    """A serial arm: base link, links, six revolute joints in order, and a gripper on the last."""
+
+    model_config = ConfigDict(frozen=True)
+
+    base: LinkSpec
+    links: tuple[LinkSpec, ...]
+    joints: tuple[JointSpec, ...]
+    gripper: GripperSpec
+    gripper_link: LinkSpec = Field(description="the link the fingers ride on (child of last joint)")
+
+    @model_validator(mode="after")
+    def _chain(self) -> ArmSpec:
+        names = [self.base.name] + [link.name for link in self.links]
+        for joint in self.joints:
+            if joint.parent not in names or joint.child not in names:
+                raise ValueError(f"joint {joint.name} refers to an unknown link")
+        if self.joints[-1].child != self.gripper_link.name:
+            raise ValueError("the last joint's child must be the gripper link")
+        return self
+
+    @property
+    def joint_names(self) -> list[str]:
+        return [j.name for j in self.joints]
+
+    @property
+    def lower(self) -> np.ndarray:
+        return np.array([j.lower for j in self.joints])
+
+    @property
+    def upper(self) -> np.ndarray:
+        return np.array([j.upper for j in self.joints])
+
+
+class Embodiment(BaseModel):
+    """A two-arm robot: the same arm twice, at two base poses, with a home configuration."""
+
+    model_config = ConfigDict(frozen=True)
+
+    name: str
+    arm: ArmSpec
+    left_base: Pose
+    right_base: Pose
+    home: tuple[float, ...] = Field(description="home joint angles of one arm (mirrored per side)")
+    home_opening: float = Field(1.0, ge=0, le=1)
+
+    @model_validator(mode="after")
+    def _home_valid(self) -> Embodiment:
+        if len(self.home) != len(self.arm.joints):
+            raise ValueError(f"home must have {len(self.arm.joints)} joint angles")
+        q = np.asarray(self.home)
+        if np.any(q < self.arm.lower) or np.any(q > self.arm.upper):
+            raise ValueError("home configuration is outside the joint limits")
+        return self
+
+    @property
+    def num_arm_joints(self) -> int:
+        return len(self.arm.joints)
+
+    def base_pose(self, side: Side) -> Pose:
+        return self.left_base if side == "left" else self.right_base
+
+    def home_action(self) -> np.ndarray:
+        """The 14-dim action holding both arms at home with open grippers."""
+        q = list(self.home) + [self.home_opening]
+        return np.array(q + q, dtype=float)
+
+
+# --------------------------------------------------------------------------------------------
+# SDFormat generation
+# --------------------------------------------------------------------------------------------
+
+FINGER_NAMES = ("left_finger", "right_finger")
+
+
+def arm_sdf(embodiment: Embodiment, model_name: str) -> str:
+    """SDFormat (1.9) for one arm; its base link is welded to the world by the station."""
+    arm = embodiment.arm
+    g = arm.gripper
+    origin_of = {joint.child: joint for joint in arm.joints}
+    body: list[str] = []
+    for link in (arm.base, *arm.links):
+        joint = origin_of.get(link.name)
+        pose = (
+            f'<pose relative_to="{joint.parent}">{_pose_body(joint.origin)}</pose>' if joint else ""
+        )
+        body.append(_link_sdf(link, f"{embodiment.name}_{link.name}", pose))
+    for joint in arm.joints:
+        body.append(
+            f'<joint name="{joint.name}" type="revolute"><parent>{joint.parent}</parent>'
+            f"<child>{joint.child}</child>"
+            f"<axis><xyz>{_vec(joint.axis)}</xyz><limit><lower>{joint.lower}</lower>"
+            f"<upper>{joint.upper}</upper><effort>{joint.effort_limit}</effort>"
+            f"<velocity>{joint.velocity_limit}</velocity></limit>"
+            f"<dynamics><damping>{joint.damping}</damping></dynamics></axis></joint>"
+        )
+    body.extend(_finger_sdf(embodiment.name, arm.gripper_link.name, g, sign) for sign in (1, -1))
+    body.append(
+        f'<frame name="tcp" attached_to="{arm.gripper_link.name}">'
+        f'<pose relative_to="{arm.gripper_link.name}">{g.tcp_x} 0 0 0 0 0</pose></frame>'
+    )
+    # Neighbouring links of the wrist and of the shoulder overlap by construction.
+    wrist_cluster = [arm.joints[-2].child, arm.gripper_link.name, *FINGER_NAMES]
+    shoulder_cluster = [arm.base.name, arm.joints[0].child, arm.joints[1].child]
+    body.append(_filter_group("gripper_cluster", wrist_cluster))
+    body.append(_filter_group("shoulder_cluster", shoulder_cluster))
+    return (
+        '<?xml version="1.0"?><sdf version="1.9" xmlns:drake="http://drake.mit.edu">'
+        f'<model name="{model_name}">{"".join(body)}</model></sdf>'
+    )
+
+
+def _link_sdf(link: LinkSpec, mesh_prefix: str, pose: str) -> str:
+    parts = [
+        f'<link name="{link.name}">',
+        pose,
+        sdf_inertial(link.mass, link.com, link.inertia_diag),
+    ]
+    for i, prim in enumerate(link.collision):
+        parts.append(sdf_collision(f"{link.name}_collision_{i}", prim, ContactProps(friction=0.8)))
+    if link.visual:
+        mesh = trimesh.util.concatenate([p.trimesh(smooth=0.008) for p in link.visual])
+        parts.append(
+            sdf_mesh_visual(f"{link.name}_visual", export_obj(mesh, mesh_prefix), link.color)
+        )
+    parts.append("</link>")
+    return "".join(parts)
+
+
+def _finger_sdf(prefix: str, mount: str, g: GripperSpec, sign: int) -> str:
+    """One finger: a plate and a compliant pad; its frame lies on the pad's inner surface."""
+    name = FINGER_NAMES[0] if sign > 0 else FINGER_NAMES[1]
+    s = float(sign)
+    length = g.finger_length
+    plate_y = s * (g.pad_thickness + g.finger_thickness / 2)
+    plate = Primitive(
+        kind="box",
+        size=(length, g.finger_thickness, g.finger_height),
+        pose=Pose(xyz=(length / 2, plate_y, 0.0)),
+    )
+    pad = Primitive(
+        kind="box",
+        size=(g.pad_length, g.pad_thickness, g.pad_height),
+        pose=Pose(xyz=(length - g.pad_length / 2, s * g.pad_thickness / 2, 0.0)),
+    )
+    pad_props = ContactProps(
+        friction=g.pad_friction,
+        hydroelastic="compliant",
+        hydroelastic_modulus=g.pad_modulus,
+        resolution_hint=0.005,
+        dissipation=5.0,
+    )
+    m = g.finger_mass
+    inertia = (
+        m * (g.finger_thickness**2 + g.finger_height**2) / 12,
+        m * (length**2 + g.finger_height**2) / 12,
+        m * (length**2 + g.finger_thickness**2) / 12,
+    )
+    plate_mesh = export_obj(plate.trimesh(smooth=0.003), f"{prefix}_{name}_plate")
+    pad_mesh = export_obj(pad.trimesh(smooth=0.001), f"{prefix}_{name}_pad")
+    link = (
+        f'<link name="{name}">'
+        f'<pose relative_to="{mount}">{g.finger_origin_x} 0 0 0 0 0</pose>'
+        f"{sdf_inertial(m, (length / 2, plate_y, 0.0), inertia)}"
+        f"{sdf_collision(f'{name}_plate', plate, ContactProps(friction=g.pad_friction))}"
+        f"{sdf_collision(f'{name}_pad', pad, pad_props)}"
+        f"{sdf_mesh_visual(f'{name}_plate_visual', plate_mesh, g.finger_color)}"
+        f"{sdf_mesh_visual(f'{name}_pad_visual', pad_mesh, g.pad_color)}"
+        "</link>"
+    )
+    # Only the left finger is actuated; the right one follows through a coupler constraint
+    # (an SDFormat effort limit of 0 tells Drake not to add an actuator).
+    effort = g.force_limit if sign > 0 else 0.0
+    joint = (
+        f'<joint name="{name}_joint" type="prismatic"><parent>{mount}</parent><child>{name}</child>'
+        f"<axis><xyz>0 {s:g} 0</xyz><limit><lower>{g.finger_min}</lower>"
+        f"<upper>{g.finger_max}</upper><effort>{effort}</effort>"
+        f"<velocity>{g.finger_velocity_limit}</velocity></limit>"
+        "<dynamics><damping>1.0</damping></dynamics></axis></joint>"
+    )
+    return link + joint
+
+
+def _filter_group(name: str, members: list[str]) -> str:
+    m = "".join(f"<drake:member>{x}</drake:member>" for x in dict.fromkeys(members))
+    return (
+        f'<drake:collision_filter_group name="{name}">{m}'
+        f"<drake:ignored_collision_filter_group>{name}</drake:ignored_collision_filter_group>"
+        "</drake:collision_filter_group>"
+    )
+
+
+def _pose_body(p: Pose) -> str:
+    return " ".join(f"{v:.6g}" for v in (*p.xyz, *p.rpy))
+
+
+def _vec(v: Vec3) -> str:
+    return " ".join(f"{x:.6g}" for x in v)
+
+
+# --------------------------------------------------------------------------------------------
+# The default embodiment: two ViperX 300s arms (ALOHA / AgileX layout)
+# --------------------------------------------------------------------------------------------
+
+
+def aloha_viperx() -> Embodiment:
+    """Two ViperX 300s arms behind the table, 0.5 m apart, facing +y.
+
+    Joint offsets, axes, limits, masses and principal inertias follow the public ViperX 300s
+    model; collision and visual geometry are this project's own primitives.
+    """
+    dark, grey = (0.12, 0.12, 0.14, 1.0), (0.55, 0.56, 0.6, 1.0)
+
+    def j(name, parent, child, xyz, axis, lo, hi, effort, kp, kd, damping, vel=3.14):
+        return JointSpec(
+            name=name,
+            parent=parent,
+            child=child,
+            origin=Pose(xyz=xyz),
+            axis=axis,
+            lower=lo,
+            upper=hi,
+            velocity_limit=vel,
+            acceleration_limit=8.0,
+            jerk_limit=80.0,
+            effort_limit=effort,
+            kp=kp,
+            kd=kd,
+            damping=damping,
+        )
+
+    base = LinkSpec(
+        name="base_link",
+        mass=0.969,
+        com=(-0.0534, 0.0, 0.0206),
+        inertia_diag=(0.00602, 0.00717, 0.0017),
+        collision=(Primitive(kind="cylinder", size=(0.055, 0.07), pose=Pose(xyz=(0, 0, 0.035))),),
+        visual=(
+            Primitive(kind="cylinder", size=(0.055, 0.07), pose=Pose(xyz=(0, 0, 0.035))),
+            Primitive(kind="box", size=(0.14, 0.12, 0.012), pose=Pose(xyz=(-0.02, 0, 0.006))),
+        ),
+        color=dark,
+    )
+    shoulder = LinkSpec(
+        name="shoulder_link",
+        mass=0.798614,
+        com=(0.0, 0.0, 0.0116),
+        inertia_diag=(0.00120156, 0.00113744, 0.0009388),
+        collision=(Primitive(kind="cylinder", size=(0.045, 0.05), pose=Pose(xyz=(0, 0, 0.02))),),
+        visual=(Primitive(kind="cylinder", size=(0.045, 0.05), pose=Pose(xyz=(0, 0, 0.02))),),
+        color=dark,
+    )
+    upper_arm = LinkSpec(
+        name="upper_arm_link",
+        mass=0.792592,
+        com=(0.0171605, 0.0, 0.191323),
+        inertia_diag=(0.00911338, 0.008925, 0.000759317),
+        collision=(
+            segment("capsule", (0, 0, 0.0), (0, 0, 0.3), 0.032),
+            segment("capsule", (0, 0, 0.3), (0.05955, 0, 0.3), 0.03),
+        ),
+        visual=(
+            segment("capsule", (0, 0, 0.0), (0, 0, 0.3), 0.032),
+            segment("capsule", (0, 0, 0.3), (0.05955, 0, 0.3), 0.03),
+            segment("cylinder", (0, -0.04, 0), (0, 0.04, 0), 0.036),
+        ),
+        color=dark,
+    )
+    upper_forearm = LinkSpec(
+        name="upper_forearm_link",
+        mass=0.322228,
+        com=(0.107963, 0.0, 0.0),
+        inertia_diag=(0.00144107, 0.00134228, 0.000152047),
+        collision=(segment("capsule", (0.03, 0, 0), (0.2, 0, 0), 0.028),),
+        visual=(
+            segment("capsule", (0.0, 0, 0), (0.2, 0, 0), 0.028),
+            segment("cylinder", (0, -0.035, 0), (0, 0.035, 0), 0.032),
+        ),
+        color=grey,
+    )
+    lower_forearm = LinkSpec(
+        name="lower_forearm_link",
+        mass=0.414823,
+        com=(0.0374395, 0.0, 0.0),
+        inertia_diag=(0.0005911, 0.000546493, 0.000155707),
+        collision=(segment("capsule", (0.02, 0, 0), (0.085, 0, 0), 0.026),),
+        visual=(segment("capsule", (0.0, 0, 0), (0.085, 0, 0), 0.026),),
+        color=dark,
+    )
+    wrist = LinkSpec(
+        name="wrist_link",
+        mass=0.115395,
+        com=(0.04236, 0.0, 0.010577),
+        inertia_diag=(4.63051e-05, 4.32576e-05, 2.10295e-05),
+        collision=(segment("capsule", (0.0, 0, 0), (0.045, 0, 0), 0.024),),
+        visual=(
+            segment("capsule", (0.0, 0, 0), (0.05, 0, 0), 0.024),
+            segment("cylinder", (0, -0.03, 0), (0, 0.03, 0), 0.026),
+        ),
+        color=grey,
+    )
+    gripper_link = LinkSpec(
+        name="gripper_link",
+        mass=0.251652,
+        com=(0.0395662, 0.0, 0.00400649),
+        inertia_diag=(0.000689546, 0.000650316, 0.000468142),
+        collision=(
+            Primitive(kind="box", size=(0.045, 0.06, 0.05), pose=Pose(xyz=(0.03, 0, 0))),
+            Primitive(kind="box", size=(0.016, 0.13, 0.03), pose=Pose(xyz=(0.06, 0, 0))),
+        ),
+        visual=(
+            Primitive(kind="box", size=(0.045, 0.06, 0.05), pose=Pose(xyz=(0.03, 0, 0))),
+            Primitive(kind="box", size=(0.016, 0.13, 0.03), pose=Pose(xyz=(0.06, 0, 0))),
+        ),
+        color=dark,
+    )
+    gripper = GripperSpec(
+        finger_origin_x=0.0687,
+        finger_min=0.004,
+        finger_max=0.045,
+        force_limit=30.0,
+        finger_kp=3000.0,
+        finger_kd=20.0,
+        finger_mass=0.034,
+        finger_length=0.075,
+        finger_height=0.022,
+        finger_thickness=0.008,
+        pad_length=0.035,
+        pad_thickness=0.004,
+        pad_height=0.022,
+        pad_friction=1.0,
+        pad_modulus=2e6,
+    )
+    pi = 3.14158
+    joints = (
+        j(
+            "waist",
+            "base_link",
+            "shoulder_link",
+            (0, 0, 0.079),
+            (0, 0, 1),
+            -pi,
+            pi,
+            60,
+            1000,
+            40,
+            0.5,
+        ),
+        j(
+            "shoulder",
+            "shoulder_link",
+            "upper_arm_link",
+            (0, 0, 0.04805),
+            (0, 1, 0),
+            -1.85005,
+            1.25664,
+            120,
+            2000,
+            60,
+            0.5,
+        ),
+        j(
+            "elbow",
+            "upper_arm_link",
+            "upper_forearm_link",
+            (0.05955, 0, 0.3),
+            (0, 1, 0),
+            -1.76278,
+            1.6057,
+            80,
+            1500,
+            30,
+            0.5,
+        ),
+        j(
+            "forearm_roll",
+            "upper_forearm_link",
+            "lower_forearm_link",
+            (0.2, 0, 0),
+            (1, 0, 0),
+            -pi,
+            pi,
+            20,
+            300,
+            3,
+            0.1,
+        ),
+        j(
+            "wrist_angle",
+            "lower_forearm_link",
+            "wrist_link",
+            (0.1, 0, 0),
+            (0, 1, 0),
+            -1.8675,
+            2.23402,
+            20,
+            300,
+            3,
+            0.1,
+        ),
+        j(
+            "wrist_rotate",
+            "wrist_link",
+            "gripper_link",
+            (0.069744, 0, 0),
+            (1, 0, 0),
+            -pi,
+            pi,
+            10,
+            150,
+            1,
+            0.05,
+        ),
+    )
+    arm = ArmSpec(
+        base=base,
+        links=(shoulder, upper_arm, upper_forearm, lower_forearm, wrist, gripper_link),
+        joints=joints,
+        gripper=gripper,
+        gripper_link=gripper_link,
+    )
+    half_pi = float(np.pi / 2)
+    return Embodiment(
+        name="aloha_viperx",
+        arm=arm,
+        left_base=Pose(xyz=(-0.25, -0.42, 0.75), rpy=(0, 0, half_pi)),
+        right_base=Pose(xyz=(0.25, -0.42, 0.75), rpy=(0, 0, half_pi)),
+        home=(0.0, -0.96, 1.16, 0.0, 0.4, 0.0),
+    )
+
+
+EMBODIMENTS = {"aloha_viperx": aloha_viperx}
+
+
+def get_embodiment(name: str) -> Embodiment:
+    """The registered embodiment called `name`; a clear error lists the valid names."""
+    try:
+        return EMBODIMENTS[name]()
+    except KeyError:
+        raise ValueError(
+            f"unknown embodiment {name!r}; choose one of: {', '.join(sorted(EMBODIMENTS))}"
+        ) from None

@@ -1,0 +1,185 @@
+"""Procedural task objects: shapes, their collision compounds, trimesh visuals and inertia.
+
+Every shape is collided through primitives. Concave shapes (a bowl) are primitive compounds - a
+base disc and a ring of wall slabs - never a convex hull, which would close the opening. Visuals
+are smooth trimesh meshes of the same solid, exported as OBJ with normals.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+import numpy as np
+import trimesh
+from pydantic import BaseModel, ConfigDict, Field
+
+from bicoord_drake.models.geometry import (
+    ContactProps,
+    Pose,
+    Primitive,
+    Rgba,
+    export_obj,
+    sdf_collision,
+    sdf_inertial,
+    sdf_mesh_visual,
+)
+
+
+class _Shape(BaseModel):
+    model_config = ConfigDict(frozen=True)
+
+    def primitives(self) -> list[Primitive]:
+        raise NotImplementedError
+
+    def visual_mesh(self) -> trimesh.Trimesh:
+        return trimesh.util.concatenate([p.trimesh() for p in self.primitives()])
+
+
+class BoxShape(_Shape):
+    """A box with full side lengths `size` (m)."""
+
+    kind: Literal["box"] = "box"
+    size: tuple[float, float, float] = Field(description="x, y, z side lengths, m")
+
+    def primitives(self) -> list[Primitive]:
+        return [Primitive(kind="box", size=self.size)]
+
+    def visual_mesh(self) -> trimesh.Trimesh:
+        return Primitive(kind="box", size=self.size).trimesh(smooth=0.06 * min(self.size))
+
+
+class CylinderShape(_Shape):
+    """An upright cylinder (axis along the object's z)."""
+
+    kind: Literal["cylinder"] = "cylinder"
+    radius: float = Field(gt=0)
+    length: float = Field(gt=0)
+
+    def primitives(self) -> list[Primitive]:
+        return [Primitive(kind="cylinder", size=(self.radius, self.length))]
+
+
+class SphereShape(_Shape):
+    kind: Literal["sphere"] = "sphere"
+    radius: float = Field(gt=0)
+
+    def primitives(self) -> list[Primitive]:
+        return [Primitive(kind="sphere", size=(self.radius,))]
+
+
+class BowlShape(_Shape):
+    """An open bowl: a base disc and `segments` wall slabs flaring out from `base_radius` to
+    `radius` at the rim. Its frame is at the centre of the base's underside."""
+
+    kind: Literal["bowl"] = "bowl"
+    radius: float = Field(gt=0, description="outer rim radius, m")
+    base_radius: float = Field(gt=0, description="outer radius at the bottom, m")
+    height: float = Field(gt=0)
+    wall: float = Field(0.006, gt=0, description="wall and base thickness, m")
+    segments: int = Field(16, ge=6, le=48)
+
+    def primitives(self) -> list[Primitive]:
+        prims = [
+            Primitive(
+                kind="cylinder",
+                size=(self.base_radius, self.wall),
+                pose=Pose(xyz=(0.0, 0.0, self.wall / 2)),
+            )
+        ]
+        flare = self.radius - self.base_radius
+        slant = float(np.hypot(flare, self.height))
+        tilt = float(np.arctan2(flare, self.height))  # wall lean away from the axis
+        r_mid = self.base_radius + flare / 2 - self.wall / 2
+        chord = 2 * (self.base_radius + flare / 2) * np.tan(np.pi / self.segments) * 1.08
+        for k in range(self.segments):
+            yaw = 2 * np.pi * k / self.segments
+            prims.append(
+                Primitive(
+                    kind="box",
+                    size=(self.wall, float(chord), slant),
+                    pose=Pose(
+                        xyz=(r_mid * np.cos(yaw), r_mid * np.sin(yaw), self.height / 2),
+                        rpy=(0.0, tilt, yaw),
+                    ),
+                )
+            )
+        return prims
+
+
+Shape = Annotated[BoxShape | CylinderShape | SphereShape | BowlShape, Field(discriminator="kind")]
+
+
+class SceneObject(BaseModel):
+    """One object of a scene: its shape, look, mass and initial pose (object frame in world)."""
+
+    model_config = ConfigDict(frozen=True)
+
+    name: str = Field(pattern=r"^[A-Za-z_][A-Za-z0-9_]*$")
+    shape: Shape
+    color: Rgba = (0.8, 0.2, 0.2, 1.0)
+    mass: float = Field(0.05, gt=0)
+    pose: Pose = Pose()
+    fixed: bool = Field(False, description="welded to the world (fixtures: bins, platforms)")
+    collide: bool = Field(True, description="False for flat markers that are only seen")
+    friction: float = Field(0.9, gt=0)
+    hydroelastic_modulus: float = Field(1e6, gt=0)
+
+
+def object_sdf(obj: SceneObject) -> str:
+    """SDFormat for one scene object (a single body named after the object)."""
+    prims = obj.shape.primitives()
+    mesh = obj.shape.visual_mesh()
+    props = ContactProps(
+        friction=obj.friction,
+        hydroelastic="compliant",
+        hydroelastic_modulus=obj.hydroelastic_modulus,
+        resolution_hint=_resolution_hint(obj.shape),
+        dissipation=3.0,
+    )
+    if obj.fixed:
+        props = ContactProps(
+            friction=obj.friction, hydroelastic="rigid", resolution_hint=_resolution_hint(obj.shape)
+        )
+    mass, com, inertia = inertial_of(prims, obj.mass)
+    body = [f'<link name="{obj.name}">', sdf_inertial(mass, com, inertia)]
+    if obj.collide:
+        body += [sdf_collision(f"{obj.name}_collision_{i}", p, props) for i, p in enumerate(prims)]
+    body.append(
+        sdf_mesh_visual(f"{obj.name}_visual", export_obj(mesh, f"obj_{obj.shape.kind}"), obj.color)
+    )
+    body.append("</link>")
+    return (
+        '<?xml version="1.0"?><sdf version="1.9" xmlns:drake="http://drake.mit.edu">'
+        f'<model name="{obj.name}">{"".join(body)}</model></sdf>'
+    )
+
+
+def inertial_of(prims: list[Primitive], mass: float) -> tuple[float, tuple, tuple]:
+    """Mass, centre of mass and principal-axis-aligned inertia diagonal of a uniform compound.
+
+    Off-diagonal terms of the symmetric shapes used here vanish in the object frame.
+    """
+    meshes = [p.trimesh() for p in prims]
+    volumes = np.array([m.volume for m in meshes])
+    density = mass / volumes.sum()
+    com = sum(m.center_mass * v for m, v in zip(meshes, volumes, strict=True)) / volumes.sum()
+    inertia = np.zeros((3, 3))
+    for m in meshes:
+        m.density = density
+        inertia += m.moment_inertia_frame(_translation(com))
+    diag = np.maximum(np.diag(inertia), 1e-9)
+    return mass, tuple(float(c) for c in com), tuple(float(d) for d in diag)
+
+
+def _translation(p: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = p
+    return T
+
+
+def _resolution_hint(shape: _Shape) -> float:
+    if isinstance(shape, SphereShape):
+        return max(shape.radius / 2, 0.003)
+    if isinstance(shape, CylinderShape):
+        return max(min(shape.radius, shape.length) / 2, 0.003)
+    return 0.01

@@ -1,0 +1,125 @@
+"""The `Scene` value: what a task puts on the table, drawn from one seed.
+
+A scene is plain data - objects with shapes, colours, masses and initial poses - so it can be
+stored in an episode file and rebuilt exactly. ``build_station(scene, config)`` is the only place
+that turns it into a Drake diagram.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from bicoord_drake.models.geometry import Pose
+from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
+
+#: World height of the table top (m); objects rest on it at z = TABLE_TOP + their half height.
+TABLE_TOP = 0.75
+
+
+class Scene(BaseModel):
+    """Objects on the table, in world coordinates, plus the seed that drew them."""
+
+    model_config = ConfigDict(frozen=True)
+
+    name: str = "empty"
+    seed: int | None = None
+    objects: tuple[SceneObject, ...] = ()
+    draws: dict[str, float | int | str | list] = Field(
+        default_factory=dict, description="every random draw, for exact rebuilds"
+    )
+
+    @model_validator(mode="after")
+    def _unique_names(self) -> Scene:
+        names = [o.name for o in self.objects]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ValueError(f"duplicate object names in scene: {sorted(dup)}")
+        return self
+
+    @property
+    def free_objects(self) -> list[SceneObject]:
+        return [o for o in self.objects if not o.fixed]
+
+    def object(self, name: str) -> SceneObject:
+        for o in self.objects:
+            if o.name == name:
+                return o
+        raise KeyError(
+            f"no object {name!r} in scene {self.name!r}; objects: {[o.name for o in self.objects]}"
+        )
+
+
+def cube(
+    name: str,
+    x: float,
+    y: float,
+    size: float = 0.04,
+    color=(0.85, 0.2, 0.2, 1.0),
+    mass: float = 0.05,
+    yaw: float = 0.0,
+) -> SceneObject:
+    """A cube resting on the table at table-centred (x, y)."""
+    return SceneObject(
+        name=name,
+        shape=BoxShape(size=(size, size, size)),
+        color=color,
+        mass=mass,
+        pose=Pose(xyz=(x, y, TABLE_TOP + size / 2), rpy=(0, 0, yaw)),
+    )
+
+
+def _empty() -> Scene:
+    return Scene(name="empty")
+
+
+def _cubes() -> Scene:
+    colors = [
+        (0.85, 0.2, 0.2, 1),
+        (0.2, 0.6, 0.25, 1),
+        (0.2, 0.35, 0.85, 1),
+        (0.9, 0.75, 0.15, 1),
+        (0.6, 0.3, 0.75, 1),
+    ]
+    spots = [(-0.2, -0.1), (0.2, -0.1), (0.0, 0.0), (-0.1, 0.12), (0.12, 0.12)]
+    return Scene(
+        name="cubes",
+        objects=tuple(
+            cube(f"cube_{i}", x, y, color=c)
+            for i, ((x, y), c) in enumerate(zip(spots, colors, strict=True))
+        ),
+    )
+
+
+def _demo() -> Scene:
+    bowl = SceneObject(
+        name="bowl",
+        shape=BowlShape(radius=0.07, base_radius=0.045, height=0.05),
+        color=(0.9, 0.9, 0.85, 1),
+        mass=0.15,
+        pose=Pose(xyz=(0.15, -0.05, TABLE_TOP)),
+    )
+    return Scene(
+        name="demo",
+        objects=(
+            cube("red_cube", -0.2, -0.1),
+            cube("green_cube", -0.05, 0.05, color=(0.2, 0.6, 0.25, 1)),
+            cube("blue_cube", 0.0, -0.15, size=0.05, color=(0.2, 0.35, 0.85, 1)),
+            bowl,
+        ),
+    )
+
+
+#: Named example scenes for rendering and tests (tasks sample their own scenes).
+DEMO_SCENES: dict[str, Callable[[], Scene]] = {"empty": _empty, "cubes": _cubes, "demo": _demo}
+
+
+def demo_scene(name: str) -> Scene:
+    """A named example scene; a clear error lists the valid names."""
+    try:
+        return DEMO_SCENES[name]()
+    except KeyError:
+        raise ValueError(
+            f"unknown scene {name!r}; choose one of: {', '.join(DEMO_SCENES)}"
+        ) from None

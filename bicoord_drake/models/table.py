@@ -1,0 +1,53 @@
+"""The table (rigid-hydroelastic top, 1.2 m x 0.7 m, top at z = 0.75) and the floor."""
+
+from __future__ import annotations
+
+from bicoord_drake.models.geometry import ContactProps, Pose, Primitive, sdf_collision, sdf_material
+from bicoord_drake.models.scene import TABLE_TOP
+
+TABLE_SIZE = (1.2, 0.7)
+TABLE_THICKNESS = 0.04
+
+
+def _box_visual(name: str, prim: Primitive, rgba) -> str:
+    return (
+        f'<visual name="{name}">{prim.pose.sdf()}<geometry>{prim.sdf_geometry()}</geometry>'
+        f"{sdf_material(rgba)}</visual>"
+    )
+
+
+def table_sdf() -> str:
+    """SDFormat of a static model `table` (top + legs) and a floor slab."""
+    sx, sy = TABLE_SIZE
+    top = Primitive(
+        kind="box",
+        size=(sx, sy, TABLE_THICKNESS),
+        pose=Pose(xyz=(0, 0, TABLE_TOP - TABLE_THICKNESS / 2)),
+    )
+    floor = Primitive(kind="box", size=(4.0, 4.0, 0.02), pose=Pose(xyz=(0, 0, -0.01)))
+    rigid = ContactProps(friction=0.8, hydroelastic="rigid", resolution_hint=0.05)
+    parts = [
+        '<link name="table_top">',
+        sdf_collision("top", top, rigid),
+        _box_visual("top", top, (0.62, 0.5, 0.38, 1)),
+    ]
+    leg_h = TABLE_TOP - TABLE_THICKNESS
+    for i, (x, y) in enumerate(
+        [
+            (sx / 2 - 0.05, sy / 2 - 0.05),
+            (-sx / 2 + 0.05, sy / 2 - 0.05),
+            (sx / 2 - 0.05, -sy / 2 + 0.05),
+            (-sx / 2 + 0.05, -sy / 2 + 0.05),
+        ]
+    ):
+        leg = Primitive(kind="box", size=(0.05, 0.05, leg_h), pose=Pose(xyz=(x, y, leg_h / 2)))
+        parts.append(_box_visual(f"leg_{i}", leg, (0.4, 0.32, 0.24, 1)))
+    parts += [
+        sdf_collision("floor", floor, rigid),
+        _box_visual("floor", floor, (0.5, 0.5, 0.52, 1)),
+        "</link>",
+    ]
+    return (
+        '<?xml version="1.0"?><sdf version="1.9" xmlns:drake="http://drake.mit.edu">'
+        f'<model name="table"><static>true</static>{"".join(parts)}</model></sdf>'
+    )

@@ -1,0 +1,1 @@
+"""The Drake diagram: station, control systems, cameras, stepping."""

@@ -1,0 +1,129 @@
+"""The three cameras: a fixed head camera and one camera on each wrist (RenderEngineVtk, headless).
+
+Camera frames follow Drake's (and OpenCV's) convention: +z forward, +x right, +y down, so the
+exported extrinsics are directly OpenCV's world->camera ``[R | t]``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.all import (
+    CameraInfo,
+    ClippingRange,
+    ColorRenderCamera,
+    DepthRange,
+    DepthRenderCamera,
+    DiagramBuilder,
+    MakeRenderEngineVtk,
+    MultibodyPlant,
+    RenderCameraCore,
+    RenderEngineVtkParams,
+    RgbdSensor,
+    RigidTransform,
+    RotationMatrix,
+    SceneGraph,
+)
+
+from bicoord_drake.config import CameraConfig
+from bicoord_drake.models.embodiment import Embodiment
+
+RENDERER = "bicoord_vtk"
+
+#: Head camera: above and behind the robot, looking down at the table (world frame).
+HEAD_EYE = (-0.03, -0.45, 1.35)
+HEAD_DIRECTION = (0.0, 0.6, -0.8)
+#: Wrist camera mount in the gripper link frame (x forward along the fingers, z up at home):
+#: above the palm, looking past the fingertips at the workspace ahead.
+WRIST_EYE = (-0.02, 0.0, 0.085)
+WRIST_TARGET = (0.28, 0.0, -0.05)
+
+
+@dataclass(frozen=True)
+class CameraMount:
+    """Where a camera sits: a parent body (None = world) and the camera pose in it."""
+
+    name: str
+    body_name: str | None
+    side: str | None
+    X_PC: RigidTransform
+    fov_y_deg: float
+
+
+def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> RigidTransform:
+    """Camera pose (Drake/OpenCV axes) at `eye` looking at `target`, image-up toward `up`."""
+    eye, target, up = (np.asarray(v, float) for v in (eye, target, up))
+    z = target - eye
+    z /= np.linalg.norm(z)
+    x = np.cross(z, up)
+    if np.linalg.norm(x) < 1e-9:
+        raise ValueError("camera 'up' is parallel to the viewing direction")
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return RigidTransform(RotationMatrix(np.column_stack([x, y, z])), eye)
+
+
+def camera_mounts(embodiment: Embodiment, config: CameraConfig) -> list[CameraMount]:
+    """The mounts of the configured cameras."""
+    head = look_at(HEAD_EYE, np.add(HEAD_EYE, HEAD_DIRECTION))
+    wrist = look_at(WRIST_EYE, WRIST_TARGET)
+    gripper = embodiment.arm.gripper_link.name
+    all_mounts = {
+        "head_camera": CameraMount("head_camera", None, None, head, config.head_fov_y_deg),
+        "left_camera": CameraMount("left_camera", gripper, "left", wrist, config.wrist_fov_y_deg),
+        "right_camera": CameraMount(
+            "right_camera", gripper, "right", wrist, config.wrist_fov_y_deg
+        ),
+    }
+    return [all_mounts[name] for name in config.names]
+
+
+def intrinsics(config: CameraConfig, fov_y_deg: float) -> CameraInfo:
+    return CameraInfo(width=config.width, height=config.height, fov_y=np.deg2rad(fov_y_deg))
+
+
+def intrinsic_matrix(info: CameraInfo) -> np.ndarray:
+    """OpenCV 3x3 intrinsics K."""
+    return np.array(
+        [
+            [info.focal_x(), 0.0, info.center_x()],
+            [0.0, info.focal_y(), info.center_y()],
+            [0.0, 0.0, 1.0],
+        ]
+    )
+
+
+def extrinsic_matrix(X_WC: RigidTransform) -> np.ndarray:
+    """OpenCV 3x4 world->camera extrinsics [R | t] from the camera pose in world."""
+    return X_WC.inverse().GetAsMatrix34()
+
+
+def add_cameras(
+    builder: DiagramBuilder,
+    plant: MultibodyPlant,
+    scene_graph: SceneGraph,
+    embodiment: Embodiment,
+    arms: dict,
+    config: CameraConfig,
+) -> dict[str, tuple[RgbdSensor, CameraMount]]:
+    """Register the VTK renderer (no shadows) and add one RgbdSensor per configured camera."""
+    if not scene_graph.HasRenderer(RENDERER):
+        params = RenderEngineVtkParams(default_clear_color=[0.92, 0.93, 0.95])
+        scene_graph.AddRenderer(RENDERER, MakeRenderEngineVtk(params))
+    sensors = {}
+    lo, hi = config.depth_range
+    for mount in camera_mounts(embodiment, config):
+        info = intrinsics(config, mount.fov_y_deg)
+        core = RenderCameraCore(RENDERER, info, ClippingRange(0.01, 10.0), RigidTransform())
+        color = ColorRenderCamera(core, show_window=False)
+        depth = DepthRenderCamera(core, DepthRange(lo, hi))
+        if mount.body_name is None:
+            parent = scene_graph.world_frame_id()
+        else:
+            body = plant.GetBodyByName(mount.body_name, arms[mount.side])
+            parent = plant.GetBodyFrameIdOrThrow(body.index())
+        sensor = builder.AddNamedSystem(mount.name, RgbdSensor(parent, mount.X_PC, color, depth))
+        builder.Connect(scene_graph.get_query_output_port(), sensor.query_object_input_port())
+        sensors[mount.name] = (sensor, mount)
+    return sensors

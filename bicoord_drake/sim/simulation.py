@@ -1,0 +1,121 @@
+"""Stepping a station one control period at a time, and reading what it observes.
+
+>>> from bicoord_drake.models.scene import demo_scene
+>>> sim = Simulation(build_station(demo_scene("cubes")))     # doctest: +SKIP
+>>> sim.reset()
+>>> sim.step(sim.station.embodiment.home_action())
+>>> sim.joint_state(), sim.tcp_pose("left"), sim.images()["head_camera"].shape
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from pydrake.all import RigidTransform, Simulator
+
+from bicoord_drake.sim.cameras import extrinsic_matrix, intrinsic_matrix, intrinsics
+from bicoord_drake.sim.control import ACTION_SIZE
+from bicoord_drake.sim.station import Station, build_station  # noqa: F401  (re-export)
+
+
+class Simulation:
+    """A Drake simulator over a :class:`Station`, advanced one control step per action."""
+
+    def __init__(self, station: Station) -> None:
+        self.station = station
+        self.simulator = Simulator(station.diagram)
+        self.context = self.simulator.get_mutable_context()
+        self._action_port = station.diagram.GetInputPort("action")
+        self._steps = 0
+        self.reset()
+
+    # ---------------------------------------------------------------- stepping
+    def reset(self, action: np.ndarray | None = None) -> None:
+        """Back to t = 0: default (scene) object poses, arms at `action` (default: home)."""
+        st = self.station
+        self.context.SetTime(0.0)
+        st.diagram.SetDefaultContext(self.context)
+        action = st.embodiment.home_action() if action is None else self._check(action)
+        plant_context = self.plant_context
+        g = st.embodiment.arm.gripper
+        for k, side in enumerate(("left", "right")):
+            q = np.concatenate(
+                [action[7 * k : 7 * k + 6], [g.finger_position(action[7 * k + 6])] * 2]
+            )
+            st.plant.SetPositions(plant_context, st.arms[side], q)
+            st.plant.SetVelocities(plant_context, st.arms[side], np.zeros(8))
+        st.interpolator.set_action(
+            st.interpolator.GetMyMutableContextFromRoot(self.context), action
+        )
+        self._action_port.FixValue(self.context, action)
+        self.simulator.Initialize()
+        self._steps = 0
+
+    def step(self, action: np.ndarray) -> None:
+        """Apply `action` for one control period (first-order hold from the previous one)."""
+        self._action_port.FixValue(self.context, self._check(action))
+        self._steps += 1
+        self.simulator.AdvanceTo(self._steps * self.station.config.control_period)
+
+    def _check(self, action: np.ndarray) -> np.ndarray:
+        a = np.asarray(action, dtype=float)
+        if a.shape != (ACTION_SIZE,):
+            raise ValueError(f"action must have shape ({ACTION_SIZE},), got {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError("action contains NaN or infinite values")
+        return a
+
+    # ---------------------------------------------------------------- reading
+    @property
+    def time(self) -> float:
+        return self.context.get_time()
+
+    @property
+    def steps(self) -> int:
+        return self._steps
+
+    @property
+    def plant_context(self):
+        return self.station.plant.GetMyMutableContextFromRoot(self.context)
+
+    def _eval(self, name: str):
+        return self.station.diagram.GetOutputPort(name).Eval(self.context)
+
+    def joint_state(self) -> np.ndarray:
+        """[left q (6), left opening, right q (6), right opening]."""
+        return np.array(self._eval("joint_state"))
+
+    def tcp_pose(self, side: str) -> np.ndarray:
+        """TCP pose of one arm: xyz + quaternion wxyz, world frame."""
+        return np.array(self._eval(f"{side}_tcp_pose"))
+
+    def object_poses(self) -> dict[str, np.ndarray]:
+        flat = np.array(self._eval("object_poses"))
+        return {name: flat[7 * i : 7 * i + 7] for i, name in enumerate(self.station.object_bodies)}
+
+    def images(self, depth: bool = False) -> dict[str, np.ndarray]:
+        """RGB (H, W, 3) uint8 per camera; with `depth`, also '<cam>_depth' (H, W) uint16 mm."""
+        out = {}
+        for name in self.station.cameras:
+            out[name] = np.array(self._eval(f"{name}_rgb").data, copy=True)[:, :, :3]
+            if depth:
+                if not self.station.config.cameras.depth:
+                    raise ValueError("depth was not enabled in the station's CameraConfig")
+                out[f"{name}_depth"] = np.array(self._eval(f"{name}_depth").data, copy=True)[
+                    :, :, 0
+                ]
+        return out
+
+    def label_image(self, camera: str) -> np.ndarray:
+        """Per-pixel render labels (H, W) int: the plant body index of what is seen."""
+        return np.array(self._eval(f"{camera}_label").data, copy=True)[:, :, 0]
+
+    def camera_pose(self, camera: str) -> RigidTransform:
+        """X_WC of a camera (Drake/OpenCV axes); the sensor body is the camera frame itself."""
+        return self._eval(f"{camera}_pose")
+
+    def intrinsic_cv(self, camera: str) -> np.ndarray:
+        mount = self.station.cameras[camera]
+        return intrinsic_matrix(intrinsics(self.station.config.cameras, mount.fov_y_deg))
+
+    def extrinsic_cv(self, camera: str) -> np.ndarray:
+        return extrinsic_matrix(self.camera_pose(camera))

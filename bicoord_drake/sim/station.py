@@ -1,0 +1,212 @@
+"""``build_station(scene, config)``: the one place a simulation diagram is built.
+
+The station is a discrete ``MultibodyPlant`` (SAP solver, hydroelastic contact with point-contact
+fallback) holding the table, two arms and the scene's objects, plus:
+
+- joint PD control inside the plant (mutable actuator gains; SAP integrates it implicitly) with a
+  gravity feed-forward computed on a robot-only control plant,
+- an :class:`~bicoord_drake.sim.control.ActionInterpolator` that turns the 14-dim action into PD
+  targets with a first-order hold over each control period,
+- a :class:`~bicoord_drake.sim.control.StationObserver` for joint state, TCP and object poses,
+- the cameras (optional).
+
+Exported diagram ports. Input: ``action`` (14). Outputs: ``joint_state`` (14),
+``left_tcp_pose`` / ``right_tcp_pose`` (7, xyz + wxyz), ``object_poses`` (7 per object),
+``plant_state``, and per camera ``<cam>_rgb``, ``<cam>_depth`` (if enabled), ``<cam>_label``,
+``<cam>_pose``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from pydrake.all import (
+    AddMultibodyPlant,
+    Diagram,
+    DiagramBuilder,
+    JointActuatorIndex,
+    ModelInstanceIndex,
+    MultibodyPlant,
+    MultibodyPlantConfig,
+    Parser,
+    PdControllerGains,
+    RigidTransform,
+    RollPitchYaw,
+    SceneGraph,
+)
+
+from bicoord_drake.config import StationConfig
+from bicoord_drake.models.embodiment import SIDES, Embodiment, arm_sdf, get_embodiment
+from bicoord_drake.models.geometry import Pose
+from bicoord_drake.models.objects import object_sdf
+from bicoord_drake.models.scene import Scene
+from bicoord_drake.models.table import table_sdf
+from bicoord_drake.sim.cameras import CameraMount, add_cameras
+from bicoord_drake.sim.control import ActionInterpolator, GravityFeedForward, StationObserver
+
+
+@dataclass
+class Station:
+    """The built diagram and handles into it."""
+
+    diagram: Diagram
+    plant: MultibodyPlant
+    scene_graph: SceneGraph
+    control_plant: MultibodyPlant
+    embodiment: Embodiment
+    scene: Scene
+    config: StationConfig
+    arms: dict[str, ModelInstanceIndex]
+    object_bodies: dict[str, object]
+    interpolator: ActionInterpolator
+    cameras: dict[str, CameraMount] = field(default_factory=dict)
+
+    @property
+    def camera_names(self) -> list[str]:
+        return list(self.cameras)
+
+
+def rigid_transform(pose: Pose) -> RigidTransform:
+    return RigidTransform(RollPitchYaw(*pose.rpy), list(pose.xyz))
+
+
+def add_robot(plant: MultibodyPlant, embodiment: Embodiment) -> dict[str, ModelInstanceIndex]:
+    """Parse both arms into `plant` and weld their bases; returns {'left': ..., 'right': ...}."""
+    arms = {}
+    for side in SIDES:
+        (inst,) = Parser(plant).AddModelsFromString(arm_sdf(embodiment, f"{side}_arm"), "sdf")
+        base = plant.GetFrameByName(embodiment.arm.base.name, inst)
+        plant.WeldFrames(plant.world_frame(), base, rigid_transform(embodiment.base_pose(side)))
+        for joint, q in zip(embodiment.arm.joint_names, embodiment.home, strict=True):
+            plant.GetJointByName(joint, inst).set_default_angle(q)
+        for finger in ("left_finger_joint", "right_finger_joint"):
+            plant.GetJointByName(finger, inst).set_default_translation(
+                float(embodiment.arm.gripper.finger_position(embodiment.home_opening))
+            )
+        arms[side] = inst
+    return arms
+
+
+def add_scene_objects(plant: MultibodyPlant, scene: Scene) -> dict[str, object]:
+    """Parse every scene object; weld fixtures, give free objects their initial pose."""
+    bodies = {}
+    for obj in scene.objects:
+        (inst,) = Parser(plant).AddModelsFromString(object_sdf(obj), "sdf")
+        body = plant.GetBodyByName(obj.name, inst)
+        X_WO = rigid_transform(obj.pose)
+        if obj.fixed:
+            plant.WeldFrames(plant.world_frame(), body.body_frame(), X_WO)
+        else:
+            plant.SetDefaultFloatingBaseBodyPose(body, X_WO)
+        bodies[obj.name] = body
+    return bodies
+
+
+def build_control_plant(embodiment: Embodiment) -> tuple[MultibodyPlant, dict]:
+    """A finalized robot-only continuous plant for gravity compensation and kinematics."""
+    plant = MultibodyPlant(time_step=0.0)
+    arms = add_robot(plant, embodiment)
+    plant.Finalize()
+    return plant, arms
+
+
+def _configure_actuators(
+    plant: MultibodyPlant,
+    embodiment: Embodiment,
+    arms: dict[str, ModelInstanceIndex],
+    kp_scale: float,
+) -> None:
+    arm, g = embodiment.arm, embodiment.arm.gripper
+    gains = {j.name: (j.kp * kp_scale, j.kd * kp_scale**0.5) for j in arm.joints}
+    gains["left_finger_joint"] = (g.finger_kp, g.finger_kd)
+    # GetJointActuatorIndices(instance) is empty before Finalize(): walk all actuators instead.
+    for i in range(plant.num_actuators()):
+        actuator = plant.get_mutable_joint_actuator(JointActuatorIndex(i))
+        if actuator.model_instance() in arms.values():
+            kp, kd = gains[actuator.joint().name()]
+            actuator.set_controller_gains(PdControllerGains(p=kp, d=kd))
+    for inst in arms.values():
+        plant.AddCouplerConstraint(
+            joint0=plant.GetJointByName("left_finger_joint", inst),
+            joint1=plant.GetJointByName("right_finger_joint", inst),
+            gear_ratio=1.0,
+            offset=0.0,
+        )
+
+
+def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
+    """Build the simulation diagram for `scene` (see the module docstring for its ports)."""
+    config = config or StationConfig()
+    embodiment = get_embodiment(config.embodiment)
+    builder = DiagramBuilder()
+    plant, scene_graph = AddMultibodyPlant(
+        MultibodyPlantConfig(
+            time_step=config.time_step,
+            discrete_contact_approximation="sap",
+            contact_model=config.contact_model,
+        ),
+        builder,
+    )
+    Parser(plant).AddModelsFromString(table_sdf(), "sdf")
+    arms = add_robot(plant, embodiment)
+    _configure_actuators(plant, embodiment, arms, config.kp_scale)
+    object_bodies = add_scene_objects(plant, scene)
+    plant.Finalize()
+
+    interpolator = builder.AddNamedSystem(
+        "action_interpolator", ActionInterpolator(embodiment, config.control_period)
+    )
+    builder.ExportInput(interpolator.action_input_port(), "action")
+    for side in SIDES:
+        builder.Connect(
+            interpolator.GetOutputPort(f"{side}_desired_state"),
+            plant.get_desired_state_input_port(arms[side]),
+        )
+
+    control_plant, control_arms = build_control_plant(embodiment)
+    if config.gravity_compensation:
+        gravity = builder.AddNamedSystem(
+            "gravity_feed_forward", GravityFeedForward(plant, arms, control_plant, control_arms)
+        )
+        builder.Connect(plant.get_state_output_port(), gravity.GetInputPort("state"))
+        for side in SIDES:
+            builder.Connect(
+                gravity.GetOutputPort(f"{side}_actuation"),
+                plant.get_actuation_input_port(arms[side]),
+            )
+
+    observer = builder.AddNamedSystem(
+        "observer", StationObserver(plant, embodiment, arms, list(object_bodies.values()))
+    )
+    builder.Connect(plant.get_state_output_port(), observer.GetInputPort("state"))
+    builder.Connect(plant.get_body_poses_output_port(), observer.GetInputPort("body_poses"))
+    for name in ("joint_state", "left_tcp_pose", "right_tcp_pose", "object_poses"):
+        builder.ExportOutput(observer.GetOutputPort(name), name)
+    builder.ExportOutput(plant.get_state_output_port(), "plant_state")
+
+    mounts = {}
+    if config.render and config.cameras.names:
+        sensors = add_cameras(builder, plant, scene_graph, embodiment, arms, config.cameras)
+        for name, (sensor, mount) in sensors.items():
+            builder.ExportOutput(sensor.color_image_output_port(), f"{name}_rgb")
+            builder.ExportOutput(sensor.label_image_output_port(), f"{name}_label")
+            builder.ExportOutput(sensor.body_pose_in_world_output_port(), f"{name}_pose")
+            if config.cameras.depth:
+                builder.ExportOutput(sensor.depth_image_16U_output_port(), f"{name}_depth")
+            mounts[name] = mount
+
+    diagram = builder.Build()
+    diagram.set_name("bicoord_station")
+    return Station(
+        diagram=diagram,
+        plant=plant,
+        scene_graph=scene_graph,
+        control_plant=control_plant,
+        embodiment=embodiment,
+        scene=scene,
+        config=config,
+        arms=arms,
+        object_bodies=object_bodies,
+        interpolator=interpolator,
+        cameras=mounts,
+    )

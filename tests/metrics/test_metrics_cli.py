@@ -1,0 +1,119 @@
+"""scripts/metrics.py on a small synthetic dataset written in tmp_path."""
+
+import importlib.util
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "metrics.py"
+KEYS = ["SMT", "SMP", "MRD", "ARD", "STI", "TL", "SN", "ON"]
+
+
+@pytest.fixture(scope="module")
+def cli():
+    spec = importlib.util.spec_from_file_location("metrics_cli", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def write_episode(path: Path, *, task: str | None, length: int = 8) -> None:
+    """Arms approach along x with the left gripper closed; ours if ``task`` is given."""
+    s = np.linspace(0.0, 1.0, length)[:, None]
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (length, 1))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with h5py.File(path, "w") as f:
+        f["endpose/left_endpose"] = np.hstack([[-0.3, 0.5, 0.9] + s * [0.1, 0.0, 0.0], quat])
+        f["endpose/right_endpose"] = np.hstack([[0.3, 0.5, 0.9] - s * [0.1, 0.0, 0.0], quat])
+        f["joint_action/left_gripper"] = np.zeros(length)
+        f["joint_action/right_gripper"] = np.ones(length)
+        if task is not None:
+            f["stages/start"] = np.array([0, length // 2])
+            f.attrs.update({"task": task, "schema_version": "1.0", "object_count": 3})
+
+
+@pytest.fixture
+def dataset(tmp_path) -> Path:
+    root = tmp_path / "out"
+    for i in range(2):
+        write_episode(root / "lift" / "default" / "data" / f"episode{i}.hdf5", task="lift")
+    write_episode(root / "pour" / "default" / "data" / "episode0.hdf5", task="pour", length=12)
+    write_episode(root / "robotwin" / "stack" / "clean" / "data" / "episode0.hdf5", task=None)
+    return root
+
+
+def test_table(cli, dataset, capsys):
+    assert cli.main([str(dataset)]) == 0
+    out = capsys.readouterr()
+    lines = out.out.splitlines()
+    assert lines[0].startswith("| Task | N | SMT | SMP % |")
+    assert [line.split("|")[1].strip() for line in lines[2:]] == [
+        "lift",
+        "pour",
+        "stack",
+        "overall",
+    ]
+    assert out.err == ""
+
+
+def test_json(cli, dataset, capsys):
+    assert cli.main([str(dataset), "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) == {"per_task", "overall"}
+    assert list(out["per_task"]) == ["lift", "pour", "stack"]
+    for row in [*out["per_task"].values(), out["overall"]]:
+        assert list(row) == KEYS
+    # Left gripper closed (always acting), right moves from frame 2 on: SMP = (L - 1) / L;
+    # the gap shrinks from 0.6 m to 0.4 m: MRD = 2/3.
+    lift = out["per_task"]["lift"]
+    assert lift["SMP"] == pytest.approx(100 * 7 / 8)
+    assert lift["MRD"] == pytest.approx(100 * 0.4 / 0.6)
+    assert (lift["TL"], lift["SN"], lift["ON"]) == (8.0, 2.0, 3.0)
+    assert out["per_task"]["stack"]["SN"] is None and out["per_task"]["stack"]["ON"] is None
+    assert out["overall"]["TL"] == pytest.approx((8 + 8 + 12 + 8) / 4)
+
+
+def test_plot(cli, dataset, tmp_path, capsys):
+    png = tmp_path / "sti.png"
+    assert cli.main([str(dataset), "--plot", str(png)]) == 0
+    assert png.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_bad_files_are_reported_and_good_ones_measured(cli, dataset, tmp_path, capsys):
+    (dataset / "lift" / "default" / "data" / "episode9.hdf5").write_text("not hdf5")
+    with h5py.File(dataset / "pour" / "default" / "data" / "episode1.hdf5", "w") as f:
+        f["endpose/left_endpose"] = np.zeros((3, 7))
+        f.attrs["task"] = "pour"
+    code = cli.main([str(dataset), str(tmp_path / "missing"), "--json"])
+    out = capsys.readouterr()
+    assert code == 1
+    errors = out.err.splitlines()
+    assert len(errors) == 3
+    assert any("episode9.hdf5: not an HDF5 file" in e for e in errors)
+    assert any("episode1.hdf5: missing key 'endpose/right_endpose'" in e for e in errors)
+    assert any("missing: no such file or directory" in e for e in errors)
+    assert json.loads(out.out)["overall"]["TL"] == pytest.approx(9.0)
+
+
+def test_no_traceback_on_user_errors(tmp_path):
+    bad = tmp_path / "bad.hdf5"
+    bad.write_text("x")
+    run = subprocess.run(
+        [sys.executable, str(SCRIPT), str(bad), str(tmp_path / "nope")],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    assert run.returncode == 1
+    assert "Traceback" not in run.stderr
+    assert run.stderr.splitlines() == [
+        f"error: {tmp_path / 'nope'}: no such file or directory",
+        f"error: {bad}: not an HDF5 file",
+        "error: no episode could be measured",
+    ]
+    assert run.stdout == ""

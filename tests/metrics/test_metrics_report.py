@@ -1,0 +1,119 @@
+"""Dataset-level tables and STI curves."""
+
+import json
+
+import numpy as np
+import pytest
+
+from bicoord_drake.data.readers import Trajectory
+from bicoord_drake.metrics import (
+    coordination_metrics,
+    dataset_metrics,
+    format_csv,
+    format_table,
+    plot_sti_curves,
+    sti_curves,
+)
+
+
+def xs(*values):
+    return np.array([[v, 0.0, 0.0] for v in values])
+
+
+def traj(task, left, right, lg, rg, n_stages=None, n_objects=None, source=None):
+    return Trajectory(
+        source=source or f"{task}.hdf5",
+        task=task,
+        layout="bicoord_drake",
+        left_xyz=left,
+        right_xyz=right,
+        left_gripper=np.asarray(lg, float),
+        right_gripper=np.asarray(rg, float),
+        n_stages=n_stages,
+        n_objects=n_objects,
+    )
+
+
+@pytest.fixture
+def trajectories():
+    # a1: approaching (SMT 2 of 4, r = 1, .75, .5, .5); a2: still and open (SMT 0 of 2).
+    a1 = traj("a", xs(0, 0, 0, 0), xs(1, 0.75, 0.5, 0.5), [0] * 4, [1] * 4, 3, 2)
+    a2 = traj("a", xs(0, 0), xs(1, 1), [1, 1], [1, 1], 5, 4)
+    # b: holding both grippers closed, arms still (SMT 2 of 2, r = 1); no stage/object counts.
+    b = traj("b", xs(0, 0), xs(2, 2), [0, 0], [0, 0])
+    return [a1, a2, b]
+
+
+def test_dataset_metrics_are_means_of_per_trajectory_values(trajectories):
+    m = dataset_metrics(trajectories)
+    assert list(m.per_task) == ["a", "b"]
+    a = m.per_task["a"]
+    assert a.n == 2
+    assert a.smt == pytest.approx(1.0)
+    # Mean of per-trajectory SMPs (0.5 and 0), not total SMT / total length (2 / 6).
+    assert a.smp == pytest.approx(0.25)
+    assert a.mrd == pytest.approx((0.5 + 1.0) / 2)
+    assert a.ard == pytest.approx((0.6875 + 1.0) / 2)
+    assert a.sti == pytest.approx(0.1875 / 2)
+    assert (a.tl, a.sn, a.on) == (3.0, 4.0, 3.0)
+    b = m.per_task["b"]
+    assert (b.n, b.smt, b.smp, b.sti, b.tl, b.sn, b.on) == (1, 2.0, 1.0, 0.0, 2.0, None, None)
+    overall = m.overall
+    assert overall.n == 3
+    assert overall.smp == pytest.approx((0.5 + 0.0 + 1.0) / 3)
+    assert overall.tl == pytest.approx(8 / 3)
+    assert (overall.sn, overall.on) == (None, None)
+    assert [e.coordination for e in m.episodes] == [
+        coordination_metrics(t.left_xyz, t.right_xyz, t.left_gripper, t.right_gripper)
+        for t in trajectories
+    ]
+
+
+def test_json_has_exactly_the_table_keys_in_percent(trajectories):
+    out = json.loads(json.dumps(dataset_metrics(trajectories).to_json_dict()))
+    assert set(out) == {"per_task", "overall"}
+    keys = ["SMT", "SMP", "MRD", "ARD", "STI", "TL", "SN", "ON"]
+    for row in [*out["per_task"].values(), out["overall"]]:
+        assert list(row) == keys
+    assert out["per_task"]["a"]["SMP"] == pytest.approx(25.0)
+    assert out["per_task"]["a"]["STI"] == pytest.approx(9.375)
+    assert out["per_task"]["a"]["SMT"] == pytest.approx(1.0)
+    assert out["per_task"]["b"]["SN"] is None and out["overall"]["ON"] is None
+
+
+def test_table_and_csv(trajectories):
+    m = dataset_metrics(trajectories)
+    table = format_table(m).splitlines()
+    assert table[0] == "| Task | N | SMT | SMP % | MRD % | ARD % | STI % | TL | SN | ON |"
+    assert table[2] == "| a | 2 | 1.0 | 25.00 | 75.00 | 84.38 | 9.38 | 3.0 | 4.00 | 3.00 |"
+    assert table[3].startswith("| b | 1 | 2.0 | 100.00 |") and table[3].endswith("| - | - |")
+    assert table[4].startswith("| overall | 3 |")
+    csv = format_csv(m).splitlines()
+    assert csv[0] == "task,n,SMT,SMP,MRD,ARD,STI,TL,SN,ON"
+    assert csv[2].startswith("b,1,2.0,100.0,") and csv[2].endswith(",,")
+
+
+def test_dataset_metrics_names_the_bad_trajectory(trajectories):
+    bad = traj("c", xs(0, 0), xs(0, 1), [1, 1], [1, 1], source="c/episode7.hdf5")
+    with pytest.raises(ValueError, match=r"c/episode7\.hdf5: zero initial distance"):
+        dataset_metrics([*trajectories, bad])
+    with pytest.raises(ValueError, match="no trajectories"):
+        dataset_metrics([])
+
+
+def test_sti_curves_integrate_to_sti(trajectories):
+    d = (np.arange(20_000) + 0.5) / 20_000
+    curves = sti_curves(trajectories, d)
+    m = dataset_metrics(trajectories)
+    assert list(curves) == ["a", "b"]
+    for task, curve in curves.items():
+        assert curve.mean() == pytest.approx(m.per_task[task].sti, abs=1e-4)
+    # Near d = 0 (threshold just below 1): a1's active frames (r = .75, .5) count, a2 has none.
+    assert (curves["a"][0], curves["b"][0]) == (0.25, 0.0)
+    # Past d = .5 no active frame is that close: r < .5 never holds.
+    assert curves["a"][d > 0.5].max() == 0.0
+
+
+def test_plot_writes_png(tmp_path, trajectories):
+    out = plot_sti_curves(trajectories, tmp_path / "sti.png", points=21)
+    assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
