@@ -81,9 +81,9 @@ def _open(path: Path) -> h5py.File:
         raise ValueError(f"{path}: no such file or directory")
     if not path.is_file():
         raise ValueError(f"{path}: not a file")
-    if not h5py.is_hdf5(path):
-        raise ValueError(f"{path}: not an HDF5 file")
     try:
+        if not h5py.is_hdf5(path):
+            raise ValueError(f"{path}: not an HDF5 file")
         return h5py.File(path, "r")
     except OSError as exc:
         raise ValueError(f"{path}: cannot open HDF5 file ({exc})") from None
@@ -126,14 +126,11 @@ def _vector(f: h5py.File, key: str, path: Path) -> np.ndarray:
 
 def _attr_str(f: h5py.File, name: str) -> str | None:
     value = f.attrs.get(name)
-    if value is None:
-        return None
-    if isinstance(value, bytes):
-        return value.decode()
     if isinstance(value, np.ndarray) and value.size == 1:
         value = value.item()
-        return value.decode() if isinstance(value, bytes) else str(value)
-    return str(value)
+    if isinstance(value, bytes):
+        value = value.decode()
+    return None if value is None else str(value)
 
 
 def _detect(f: h5py.File, path: Path) -> str:
@@ -192,6 +189,16 @@ def _check_schema(f: h5py.File, path: Path) -> None:
         )
 
 
+def _read_endpose_gripper(f: h5py.File, path: Path) -> dict:
+    return {
+        "left_xyz": _matrix(f, _LEFT_POSE, 7, path)[:, :3],
+        "right_xyz": _matrix(f, _RIGHT_POSE, 7, path)[:, :3],
+        "left_gripper": _vector(f, _LEFT_GRIP, path),
+        "right_gripper": _vector(f, _RIGHT_GRIP, path),
+        "keys": (_LEFT_POSE, _RIGHT_POSE, _LEFT_GRIP, _RIGHT_GRIP),
+    }
+
+
 def _read_ours(f: h5py.File, path: Path) -> dict:
     _check_schema(f, path)
     signals = _read_endpose_gripper(f, path)
@@ -200,7 +207,13 @@ def _read_ours(f: h5py.File, path: Path) -> dict:
     else:
         n_stages = _sidecar_stage_count(path)
     if "object_count" in f.attrs:
-        n_objects = int(np.asarray(f.attrs["object_count"]).item())
+        count = np.asarray(f.attrs["object_count"])
+        if count.size != 1 or not np.issubdtype(count.dtype, np.integer) or count.item() < 0:
+            raise ValueError(
+                f"{path}: root attribute 'object_count' must be a non-negative integer, "
+                f"got {count.tolist()!r}"
+            )
+        n_objects = int(count.item())
     elif isinstance(f.get("objects"), h5py.Group):
         n_objects = len(f["objects"])
     else:
@@ -213,16 +226,6 @@ def _read_ours(f: h5py.File, path: Path) -> dict:
         n_objects=n_objects,
         success=None if success is None else bool(np.asarray(success).item()),
     )
-
-
-def _read_endpose_gripper(f: h5py.File, path: Path) -> dict:
-    return {
-        "left_xyz": _matrix(f, _LEFT_POSE, 7, path)[:, :3],
-        "right_xyz": _matrix(f, _RIGHT_POSE, 7, path)[:, :3],
-        "left_gripper": _vector(f, _LEFT_GRIP, path),
-        "right_gripper": _vector(f, _RIGHT_GRIP, path),
-        "keys": (_LEFT_POSE, _RIGHT_POSE, _LEFT_GRIP, _RIGHT_GRIP),
-    }
 
 
 def _read_robotwin(f: h5py.File, path: Path) -> dict:

@@ -93,6 +93,12 @@ def test_our_layout_rejects_another_schema_major(tmp_path):
         read_trajectory(path)
 
 
+def test_our_layout_rejects_a_bad_object_count(tmp_path):
+    path = write(tmp_path / "e.hdf5", ours_datasets(), {**OURS_ATTRS, "object_count": 2.5})
+    with pytest.raises(ValueError, match=r"e\.hdf5: root attribute 'object_count' must be"):
+        read_trajectory(path)
+
+
 def test_reads_robotwin_layout_and_task_from_directories(tmp_path):
     path = write(
         tmp_path / "stack_bowls" / "demo_clean" / "data" / "episode3.hdf5", robotwin_datasets()
