@@ -105,6 +105,21 @@ class BowlShape(_Shape):
             )
         return prims
 
+    def visual_mesh(self) -> trimesh.Trimesh:
+        """A smooth solid of revolution: outer wall, rim, inner wall and base."""
+        w = self.wall
+        profile = np.array(
+            [
+                [0.0, 0.0],
+                [self.base_radius, 0.0],
+                [self.radius, self.height],
+                [self.radius - w, self.height],
+                [self.base_radius - w, w],
+                [0.0, w],
+            ]
+        )
+        return trimesh.creation.revolve(profile, sections=48)
+
 
 Shape = Annotated[BoxShape | CylinderShape | SphereShape | BowlShape, Field(discriminator="kind")]
 

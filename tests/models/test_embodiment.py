@@ -1,0 +1,115 @@
+"""The robot model: it loads, its kinematics match the ViperX 300s, bad descriptions are refused."""
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+from pydrake.all import MultibodyPlant
+
+from bicoord_drake.models.embodiment import Embodiment, aloha_viperx, arm_sdf, get_embodiment
+from bicoord_drake.models.geometry import pose_matrix
+from bicoord_drake.sim.station import add_robot
+
+
+def _axis_rotation(axis, angle):
+    axis = np.asarray(axis, float)
+    K = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    T = np.eye(4)
+    T[:3, :3] = np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+    return T
+
+
+def reference_tcp(embodiment, side, q):
+    """Forward kinematics straight from the description, independent of SDFormat and Drake."""
+    base = embodiment.base_pose(side)
+    T = pose_matrix(base.xyz, base.rpy)
+    for joint, angle in zip(embodiment.arm.joints, q, strict=True):
+        T = T @ pose_matrix(joint.origin.xyz, joint.origin.rpy) @ _axis_rotation(joint.axis, angle)
+    return (T @ pose_matrix((embodiment.arm.gripper.tcp_x, 0, 0), (0, 0, 0)))[:3, 3]
+
+
+@pytest.fixture(scope="module")
+def robot():
+    e = aloha_viperx()
+    plant = MultibodyPlant(0.0)
+    arms = add_robot(plant, e)
+    plant.Finalize()
+    return e, plant, arms
+
+
+def test_two_arms_load_with_six_joints_and_two_fingers_each(robot):
+    e, plant, arms = robot
+    assert plant.num_positions() == 16
+    for inst in arms.values():
+        assert plant.num_positions(inst) == 8
+        assert len(plant.GetJointActuatorIndices(inst)) == 7  # 6 joints + one coupled finger
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_tcp_at_home_matches_reference_kinematics(robot, side):
+    e, plant, arms = robot
+    context = plant.CreateDefaultContext()
+    X = plant.GetFrameByName("tcp", arms[side]).CalcPoseInWorld(context)
+    np.testing.assert_allclose(X.translation(), reference_tcp(e, side, e.home), atol=1e-9)
+    # home: in front of its base, above the table, on its own side of the table
+    base = np.array(e.base_pose(side).xyz)
+    assert X.translation()[1] > base[1] + 0.15
+    assert 0.85 < X.translation()[2] < 1.0
+    assert np.sign(X.translation()[0]) == (-1 if side == "left" else 1)
+
+
+def test_tcp_matches_reference_at_random_configurations(robot):
+    e, plant, arms = robot
+    context = plant.CreateDefaultContext()
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        q = rng.uniform(e.arm.lower, e.arm.upper)
+        plant.SetPositions(context, arms["right"], np.concatenate([q, [0.02, 0.02]]))
+        X = plant.GetFrameByName("tcp", arms["right"]).CalcPoseInWorld(context)
+        np.testing.assert_allclose(X.translation(), reference_tcp(e, "right", q), atol=1e-9)
+
+
+def test_tcp_is_midway_between_the_finger_pads(robot):
+    e, plant, arms = robot
+    context = plant.CreateDefaultContext()
+    inst = arms["left"]
+    plant.SetPositions(context, inst, np.concatenate([e.home, [0.03, 0.03]]))
+    X_WT = plant.GetFrameByName("tcp", inst).CalcPoseInWorld(context)
+    pads = []
+    for finger in ("left_finger", "right_finger"):
+        X_WF = plant.GetFrameByName(finger, inst).CalcPoseInWorld(context)
+        pads.append(X_WF.translation())
+    g = e.arm.gripper
+    # finger frames lie on the pads' inner surfaces at the finger root; the pad centre is
+    # (finger_length - pad_length / 2) further along the approach axis
+    centre = np.mean(pads, axis=0) + X_WT.rotation().col(0) * (g.finger_length - g.pad_length / 2)
+    np.testing.assert_allclose(X_WT.translation(), centre, atol=1e-9)
+    assert np.linalg.norm(pads[0] - pads[1]) == pytest.approx(0.06, abs=1e-9)
+
+
+def test_visual_meshes_are_obj_with_normals():
+    sdf = arm_sdf(aloha_viperx(), "left_arm")
+    uris = [part.split("</uri>")[0] for part in sdf.split("<uri>file://")[1:]]
+    assert len(uris) >= 8
+    for path in uris:
+        text = open(path).read()
+        assert "\nvn " in text and "\nf " in text, path
+
+
+def test_unknown_embodiment_lists_valid_names():
+    with pytest.raises(ValueError, match="aloha_viperx"):
+        get_embodiment("panda_pair")
+
+
+def test_home_outside_joint_limits_is_refused():
+    fields = aloha_viperx().model_dump()
+    fields["home"] = (0.0, -3.0, 0.0, 0.0, 0.0, 0.0)
+    with pytest.raises(ValidationError, match="joint limits"):
+        Embodiment(**fields)
+
+
+def test_gripper_opening_maps_onto_finger_travel():
+    g = aloha_viperx().arm.gripper
+    assert g.finger_position(0.0) == pytest.approx(g.finger_min)
+    assert g.finger_position(1.0) == pytest.approx(g.finger_max)
+    assert g.opening(g.finger_position(0.37)) == pytest.approx(0.37)
+    assert 2 * g.finger_max >= 0.085  # opens wider than the largest task cube side

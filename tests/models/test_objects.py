@@ -1,0 +1,43 @@
+"""Procedural objects: inertia, concave compounds, scene validation."""
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject, inertial_of
+from bicoord_drake.models.scene import Scene, cube, demo_scene
+
+
+def test_box_inertia_matches_closed_form():
+    size = (0.04, 0.06, 0.1)
+    mass, com, diag = inertial_of(BoxShape(size=size).primitives(), 0.3)
+    a, b, c = size
+    expected = 0.3 / 12 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
+    np.testing.assert_allclose(diag, expected, rtol=1e-6)
+    np.testing.assert_allclose(com, 0, atol=1e-12)
+
+
+def test_bowl_is_open_compound_with_low_centre_of_mass():
+    bowl = BowlShape(radius=0.07, base_radius=0.045, height=0.05, segments=16)
+    prims = bowl.primitives()
+    assert len(prims) == 17  # base disc + 16 wall slabs, never a convex hull
+    _, com, _ = inertial_of(prims, 0.15)
+    assert 0 < com[2] < bowl.height / 2
+    # the slabs stay outside the inner base radius: the opening is free down to the base
+    for p in prims[1:]:
+        assert np.hypot(*p.pose.xyz[:2]) > bowl.base_radius - bowl.wall
+
+
+def test_scene_rejects_duplicate_names():
+    with pytest.raises(ValidationError, match="duplicate"):
+        Scene(objects=(cube("a", 0, 0), cube("a", 0.1, 0)))
+
+
+def test_object_names_must_be_identifiers():
+    with pytest.raises(ValidationError, match="name"):
+        SceneObject(name="red cube", shape=BoxShape(size=(0.04, 0.04, 0.04)))
+
+
+def test_unknown_demo_scene_lists_valid_names():
+    with pytest.raises(ValueError, match="cubes"):
+        demo_scene("kitchen")

@@ -1,0 +1,101 @@
+"""The station: PD tracking, gravity feed-forward, the action path and its validation."""
+
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from bicoord_drake.config import CameraConfig, StationConfig, parse_resolution
+from bicoord_drake.models.scene import demo_scene
+from bicoord_drake.sim.simulation import Simulation
+from bicoord_drake.sim.station import build_station
+
+
+@pytest.fixture(scope="module")
+def sim():
+    return Simulation(build_station(demo_scene("cubes"), StationConfig(render=False)))
+
+
+def _target(station):
+    a = station.embodiment.home_action().copy()
+    a[0:6] = [0.3, -0.5, 0.8, 0.2, 0.6, -0.3]
+    a[7:13] = [-0.3, -0.4, 0.9, -0.2, 0.5, 0.3]
+    return a
+
+
+def test_pd_tracking_error_below_a_hundredth_radian_after_settling(sim):
+    sim.reset()
+    a = _target(sim.station)
+    for _ in range(30):  # 2 s
+        sim.step(a)
+    err = np.abs(sim.joint_state() - a)
+    assert err[[0, 1, 2, 3, 4, 5, 7, 8, 9, 10, 11, 12]].max() < 0.01
+
+
+def test_first_order_hold_moves_targets_linearly_between_actions(sim):
+    sim.reset()
+    st = sim.station
+    home = st.embodiment.home_action()
+    a = _target(st)
+    interp = st.interpolator
+    ctx = interp.GetMyContextFromRoot(sim.context)
+    sim.step(a)  # latched at t = 0: the target reaches `a` at t = 1/15
+    desired = interp.GetOutputPort("left_desired_state").Eval(ctx)
+    np.testing.assert_allclose(desired[:6], a[:6], atol=1e-9)
+    # half-way through the next period the target is half-way from a to b
+    b = home.copy()
+    sim._action_port.FixValue(sim.context, b)
+    sim.simulator.AdvanceTo(1.5 / 15)
+    desired = interp.GetOutputPort("left_desired_state").Eval(ctx)
+    np.testing.assert_allclose(desired[:6], (a[:6] + b[:6]) / 2, atol=1e-9)
+
+
+def test_gravity_feed_forward_holds_a_stretched_arm(sim):
+    sim.reset()
+    a = sim.station.embodiment.home_action().copy()
+    a[1], a[2], a[4] = 0.6, -0.6, 0.0  # arm stretched forward: the largest gravity torque
+    for _ in range(30):
+        sim.step(a)
+    assert np.abs(sim.joint_state()[:6] - a[:6]).max() < 0.005
+
+
+def test_objects_rest_on_the_table(sim):
+    sim.reset()
+    for _ in range(15):
+        sim.step(sim.station.embodiment.home_action())
+    for name, pose in sim.object_poses().items():
+        assert pose[2] == pytest.approx(0.77, abs=0.002), name
+
+
+def test_same_actions_give_identical_states():
+    def run():
+        s = Simulation(build_station(demo_scene("cubes"), StationConfig(render=False)))
+        a = _target(s.station)
+        for _ in range(10):
+            s.step(a)
+        return s.joint_state(), s.object_poses()
+
+    (q1, o1), (q2, o2) = run(), run()
+    np.testing.assert_array_equal(q1, q2)
+    for name in o1:
+        np.testing.assert_array_equal(o1[name], o2[name])
+
+
+@pytest.mark.parametrize("bad", [np.zeros(13), np.full(14, np.nan)])
+def test_bad_actions_are_refused_and_not_executed(sim, bad):
+    sim.reset()
+    before = sim.time
+    with pytest.raises(ValueError, match="action"):
+        sim.step(bad)
+    assert sim.time == before
+
+
+def test_config_errors_name_the_field():
+    with pytest.raises(ValidationError, match="time_step"):
+        StationConfig(time_step=-1)
+    with pytest.raises(ValidationError, match="names"):
+        CameraConfig(names=("top_camera",))
+    with pytest.raises(ValidationError, match="contact_model"):
+        StationConfig(contact_model="magic")
+    with pytest.raises(ValueError, match="WIDTHxHEIGHT"):
+        parse_resolution("320by240")
+    assert parse_resolution("640x480") == (640, 480)
