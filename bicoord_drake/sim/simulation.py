@@ -92,6 +92,40 @@ class Simulation:
         flat = np.array(self._eval("object_poses"))
         return {name: flat[7 * i : 7 * i + 7] for i, name in enumerate(self.station.object_bodies)}
 
+    def contact_pairs(self) -> set[tuple[int, int]]:
+        """Body-index pairs (sorted) in contact now, from point and hydroelastic contact."""
+        st = self.station
+        results = st.plant.get_contact_results_output_port().Eval(self.plant_context)
+        pairs = set()
+        for i in range(results.num_point_pair_contacts()):
+            info = results.point_pair_contact_info(i)
+            pairs.add(tuple(sorted((int(info.bodyA_index()), int(info.bodyB_index())))))
+        if results.num_hydroelastic_contacts():
+            inspector = st.scene_graph.model_inspector()
+            for i in range(results.num_hydroelastic_contacts()):
+                surface = results.hydroelastic_contact_info(i).contact_surface()
+                a, b = (
+                    int(st.plant.GetBodyFromFrameId(inspector.GetFrameId(g)).index())
+                    for g in (surface.id_M(), surface.id_N())
+                )
+                pairs.add(tuple(sorted((a, b))))
+        return pairs
+
+    def finger_contacts(self) -> dict[str, set[str]]:
+        """For each scene object, the sides ('left', 'right') whose fingers touch it now."""
+        st = self.station
+        fingers = {}
+        for side, inst in st.arms.items():
+            for name in ("left_finger", "right_finger"):
+                fingers[int(st.plant.GetBodyByName(name, inst).index())] = side
+        by_body = {int(body.index()): name for name, body in st.object_bodies.items()}
+        touching: dict[str, set[str]] = {name: set() for name in st.object_bodies}
+        for a, b in self.contact_pairs():
+            for finger, other in ((a, b), (b, a)):
+                if finger in fingers and other in by_body:
+                    touching[by_body[other]].add(fingers[finger])
+        return touching
+
     def images(self, depth: bool = False) -> dict[str, np.ndarray]:
         """RGB (H, W, 3) uint8 per camera; with `depth`, also '<cam>_depth' (H, W) uint16 mm."""
         out = {}

@@ -56,3 +56,22 @@ def test_cube_lift_and_hold_without_slip(side, x):
     opening = sim.joint_state()[k + 6]
     gap = 2 * station.embodiment.arm.gripper.finger_position(opening)
     assert gap == pytest.approx(0.04, abs=0.004)
+
+
+def test_finger_contacts_report_the_grasping_side():
+    scene = Scene(name="grasp", objects=(cube("cube", -0.2, -0.1), cube("free", 0.2, 0.1)))
+    station = build_station(scene, StationConfig(render=False))
+    sim = Simulation(station)
+    home = station.embodiment.home_action()
+    centre = np.array([-0.2, -0.1, 0.774])
+    q_pre = solve_arm_ik(
+        station, "left", RigidTransform(R_TOP_DOWN, centre + [0, 0, 0.1]), home[:6]
+    )
+    q_grasp = solve_arm_ik(station, "left", RigidTransform(R_TOP_DOWN, centre), q_pre)
+    for q, opening, n in ((q_pre, 1.0, 20), (q_grasp, 1.0, 15), (q_grasp, 0.0, 10)):
+        for qi in joint_ramp(sim.joint_state()[:6], q, n):
+            a = home.copy()
+            a[:6], a[6] = qi, opening
+            sim.step(a)
+    touching = sim.finger_contacts()
+    assert touching == {"cube": {"left"}, "free": set()}
