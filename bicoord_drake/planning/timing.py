@@ -1,0 +1,884 @@
+"""Ruckig time parameterization on the control-step grid: paths, two-arm sync, handovers, throws.
+
+Everything here produces a :class:`TimedTrajectory`: samples at ``t_k = k * dt`` (the control
+rate, 15 Hz by default) of a continuous jerk-limited motion, with position, velocity and
+acceleration at every sample. Every piece of a trajectory lasts a whole number of control periods
+(Ruckig's ``DurationDiscretization.Discrete``), so pieces chain on the grid, the last sample sits
+exactly on the goal, and a throw releases exactly on a control step (recorded actions replay the
+demonstration through the station's first-order hold).
+
+Key functions:
+
+- :func:`time_path` - a (K, n) joint polyline (the collision-checked path) timed *exactly along
+  its segments*: a 1-DoF Ruckig on the path parameter of each segment, with limits
+  ``min_j(limit_j / |dq_j|)``, so every joint meets its own velocity, acceleration and jerk limit
+  and the motion never leaves the straight segment (Ruckig's phase synchronization silently falls
+  back to time synchronization and then bows off the line). Corners are passed at rest - a
+  non-zero velocity through a corner would need infinite acceleration on an exact polyline;
+  collinear runs are merged into one segment. Every corner is a sample, so the station's linear
+  interpolation between samples never cuts a corner either. With a 12-DoF path both arms start
+  and arrive at the same instant by construction.
+- :func:`synchronize` / :func:`rendezvous` - arms with separate paths: the faster one is
+  uniformly slowed (time-scaled, which keeps its path and only lowers velocity, acceleration and
+  jerk) so both arrive at the same control step, optionally at a requested time.
+- :func:`throw_release` - 6-DoF Ruckig from rest to a release state with non-zero target
+  velocity, a short constant-velocity coast around the release step, then a velocity-interface
+  Ruckig that brakes to rest. :func:`ballistic_landing` and :func:`schedule_catch` put the
+  catcher under the landing point before the object arrives; :func:`throw_and_catch` assembles
+  the two-arm trajectory.
+- :meth:`TimedTrajectory.to_actions` turns a 12-DoF trajectory plus gripper schedules into the
+  (N, 14) action array ``[left 6, left opening, right 6, right opening]``.
+
+Joint vectors are ``[left 6, right 6]`` for two arms; every function also works for one arm
+(n = 6) with matching :class:`JointLimits`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+from ruckig import (
+    ControlInterface,
+    DurationDiscretization,
+    InputParameter,
+    Result,
+    Ruckig,
+    Synchronization,
+    Trajectory,
+)
+
+from bicoord_drake.models.embodiment import Embodiment, GripperSpec, Side
+from bicoord_drake.planning.errors import PlanningError
+
+#: Default control period (15 Hz).
+CONTROL_DT = 1.0 / 15.0
+#: Standard gravity (m/s^2).
+GRAVITY = 9.81
+
+_GRID_TOL = 1e-9  # how far a duration may sit from the dt grid (s)
+_LIMIT_TOL = 1e-6  # relative slack when checking limits on samples
+
+State = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+# --------------------------------------------------------------------------------------------
+# Limits
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Per-joint position, velocity, acceleration and jerk limits (all arrays of length n)."""
+
+    lower: np.ndarray
+    upper: np.ndarray
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    jerk: np.ndarray
+
+    def __post_init__(self) -> None:
+        arrays = [np.asarray(getattr(self, f), dtype=float) for f in _LIMIT_FIELDS]
+        if len({a.shape for a in arrays}) != 1 or arrays[0].ndim != 1:
+            raise ValueError("JointLimits: all limits must be 1-D arrays of the same length")
+        if np.any(arrays[0] > arrays[1]):
+            raise ValueError("JointLimits: lower must not exceed upper")
+        if any(np.any(a <= 0) for a in arrays[2:]):
+            raise ValueError("JointLimits: velocity, acceleration and jerk limits must be > 0")
+        for name, a in zip(_LIMIT_FIELDS, arrays, strict=True):
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+
+    @property
+    def n(self) -> int:
+        return len(self.lower)
+
+    @classmethod
+    def from_embodiment(
+        cls, embodiment: Embodiment, arms: int = 2, speed: float = 1.0
+    ) -> JointLimits:
+        """Limits of `arms` copies of the embodiment's arm ([left 6, right 6] for two).
+
+        `speed` slows every motion uniformly: velocity x speed, acceleration x speed^2,
+        jerk x speed^3 (the limits of the same motion played 1/speed times slower).
+        """
+        if arms not in (1, 2):
+            raise ValueError("arms must be 1 or 2")
+        joints = embodiment.arm.joints
+
+        def tile(values: list[float]) -> np.ndarray:
+            return np.tile(np.array(values, dtype=float), arms)
+
+        return cls(
+            lower=tile([j.lower for j in joints]),
+            upper=tile([j.upper for j in joints]),
+            velocity=tile([j.velocity_limit for j in joints]),
+            acceleration=tile([j.acceleration_limit for j in joints]),
+            jerk=tile([j.jerk_limit for j in joints]),
+        ).scaled(speed)
+
+    def scaled(self, speed: float) -> JointLimits:
+        """The same limits for a motion `speed` times as fast (v*s, a*s^2, j*s^3)."""
+        if speed <= 0:
+            raise ValueError(f"speed must be > 0, got {speed}")
+        return JointLimits(
+            self.lower,
+            self.upper,
+            self.velocity * speed,
+            self.acceleration * speed**2,
+            self.jerk * speed**3,
+        )
+
+    def select(self, index: slice | Sequence[int] | np.ndarray) -> JointLimits:
+        """The limits of a subset of joints (e.g. ``ARM_SLICES['left']``)."""
+        return JointLimits(*(getattr(self, f)[index] for f in _LIMIT_FIELDS))
+
+    @staticmethod
+    def concat(*parts: JointLimits) -> JointLimits:
+        """Stack limits of several arms into one vector (left first)."""
+        return JointLimits(*(np.concatenate([getattr(p, f) for p in parts]) for f in _LIMIT_FIELDS))
+
+
+_LIMIT_FIELDS = ("lower", "upper", "velocity", "acceleration", "jerk")
+
+#: Where each arm's joints sit in the 12-vector.
+ARM_SLICES: dict[Side, slice] = {"left": slice(0, 6), "right": slice(6, 12)}
+
+
+# --------------------------------------------------------------------------------------------
+# Continuous timelines (kept so a trajectory can be stretched and densely checked)
+# --------------------------------------------------------------------------------------------
+
+
+class _Timeline:
+    """A continuous motion on [0, duration]; `evaluate` clamps t into that interval."""
+
+    duration: float
+    n: int
+    stretchable: bool = True
+
+    def evaluate(self, t: float) -> State:
+        raise NotImplementedError
+
+
+class _PathSegment(_Timeline):
+    """q = q0 + s(t) * (q1 - q0) with s(t) a 1-DoF Ruckig trajectory from 0 to 1."""
+
+    def __init__(self, q0: np.ndarray, q1: np.ndarray, traj: Trajectory) -> None:
+        self.q0, self.dq, self.q1, self.traj = q0, q1 - q0, q1, traj
+        self.duration, self.n = traj.duration, len(q0)
+
+    def evaluate(self, t: float) -> State:
+        p, v, a = self.traj.at_time(min(max(t, 0.0), self.duration))
+        s = 1.0 if t >= self.duration else min(max(p[0], 0.0), 1.0)  # stay on the segment
+        q = self.q1.copy() if s == 1.0 else self.q0 + s * self.dq
+        return q, v[0] * self.dq, a[0] * self.dq
+
+
+class _RuckigSegment(_Timeline):
+    """A multi-DoF Ruckig trajectory, used as is."""
+
+    def __init__(self, traj: Trajectory, stretchable: bool = True) -> None:
+        self.traj, self.stretchable = traj, stretchable
+        self.duration, self.n = traj.duration, traj.degrees_of_freedom
+
+    def evaluate(self, t: float) -> State:
+        p, v, a = self.traj.at_time(min(max(t, 0.0), self.duration))
+        return np.array(p), np.array(v), np.array(a)
+
+
+class _Linear(_Timeline):
+    """Constant velocity (a hold when v = 0)."""
+
+    def __init__(self, q0: np.ndarray, v: np.ndarray, duration: float) -> None:
+        self.q0, self.v = np.asarray(q0, float), np.asarray(v, float)
+        self.duration, self.n = duration, len(self.q0)
+        self.stretchable = not np.any(self.v)
+
+    def evaluate(self, t: float) -> State:
+        t = min(max(t, 0.0), self.duration)
+        return self.q0 + t * self.v, self.v.copy(), np.zeros(self.n)
+
+
+class _Scaled(_Timeline):
+    """`inner` played `k` times slower: t -> inner(t / k), velocities / k, accelerations / k^2."""
+
+    def __init__(self, inner: _Timeline, k: float) -> None:
+        self.inner, self.k = inner, k
+        self.duration, self.n, self.stretchable = inner.duration * k, inner.n, inner.stretchable
+
+    def evaluate(self, t: float) -> State:
+        tau = self.inner.duration if t >= self.duration else t / self.k
+        q, v, a = self.inner.evaluate(tau)
+        return q, v / self.k, a / self.k**2
+
+
+class _Concat(_Timeline):
+    def __init__(self, parts: Sequence[_Timeline]) -> None:
+        self.parts = list(parts)
+        self.starts = np.concatenate([[0.0], np.cumsum([p.duration for p in self.parts])])
+        self.duration, self.n = float(self.starts[-1]), self.parts[0].n
+        self.stretchable = all(p.stretchable for p in self.parts)
+
+    def evaluate(self, t: float) -> State:
+        if t >= self.duration:
+            return self.parts[-1].evaluate(self.parts[-1].duration)
+        i = int(np.searchsorted(self.starts, t, side="right")) - 1
+        i = min(max(i, 0), len(self.parts) - 1)
+        return self.parts[i].evaluate(t - self.starts[i])
+
+
+class _Stack(_Timeline):
+    """Several arms side by side; each part is held at its end after it finishes."""
+
+    def __init__(self, parts: Sequence[_Timeline]) -> None:
+        self.parts = list(parts)
+        self.duration = max(p.duration for p in self.parts)
+        self.n = sum(p.n for p in self.parts)
+        self.stretchable = all(p.stretchable for p in self.parts)
+
+    def evaluate(self, t: float) -> State:
+        states = [p.evaluate(t) for p in self.parts]
+        return tuple(np.concatenate([s[i] for s in states]) for i in range(3))  # type: ignore[return-value]
+
+
+def _on_grid(timeline: _Timeline, dt: float) -> tuple[_Timeline, int]:
+    """Snap a timeline whose duration is (within float error) a multiple of dt onto the grid."""
+    steps = int(round(timeline.duration / dt))
+    if abs(steps * dt - timeline.duration) > _GRID_TOL:
+        raise PlanningError(
+            "timing_grid", f"duration {timeline.duration} s is not a multiple of dt = {dt}"
+        )
+    if steps == 0 or steps * dt == timeline.duration:
+        return timeline, steps
+    return _Scaled(timeline, steps * dt / timeline.duration), steps
+
+
+# --------------------------------------------------------------------------------------------
+# TimedTrajectory
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class TimedTrajectory:
+    """Samples of a joint motion at ``times = k * dt``, k = 0..N-1.
+
+    ``q``, ``qd``, ``qdd`` are (N, n). The first sample is the start and the last the goal; the
+    motion lasts ``duration = (N - 1) * dt``. The continuous motion behind the samples is kept
+    (:meth:`at`) so the trajectory can be stretched exactly (:meth:`stretched`).
+    """
+
+    dt: float
+    q: np.ndarray
+    qd: np.ndarray
+    qdd: np.ndarray
+    _timeline: _Timeline = field(repr=False)
+
+    @classmethod
+    def _sample(cls, timeline: _Timeline, dt: float) -> TimedTrajectory:
+        timeline, steps = _on_grid(timeline, dt)
+        times = [k * dt for k in range(steps)] + [timeline.duration]  # last one: the goal exactly
+        states = [timeline.evaluate(min(t, timeline.duration)) for t in times]
+        q, qd, qdd = (np.array([s[i] for s in states]) for i in range(3))
+        return cls(dt, q, qd, qdd, timeline)
+
+    @classmethod
+    def hold(cls, q: np.ndarray, steps: int = 0, dt: float = CONTROL_DT) -> TimedTrajectory:
+        """Stand still at `q` for `steps` control periods (steps + 1 samples)."""
+        q = np.asarray(q, dtype=float)
+        return cls._sample(_Linear(q, np.zeros_like(q), steps * dt), dt)
+
+    # -- properties ---------------------------------------------------------------------------
+
+    @property
+    def times(self) -> np.ndarray:
+        return np.arange(len(self.q)) * self.dt
+
+    @property
+    def num_steps(self) -> int:
+        """Number of control periods (samples - 1)."""
+        return len(self.q) - 1
+
+    @property
+    def duration(self) -> float:
+        return self.num_steps * self.dt
+
+    @property
+    def n(self) -> int:
+        return self.q.shape[1]
+
+    @property
+    def start(self) -> np.ndarray:
+        return self.q[0]
+
+    @property
+    def goal(self) -> np.ndarray:
+        return self.q[-1]
+
+    def at(self, t: float) -> State:
+        """Continuous (q, qd, qdd) at time t (clamped to [0, duration])."""
+        return self._timeline.evaluate(min(max(t, 0.0), self._timeline.duration))
+
+    # -- composition --------------------------------------------------------------------------
+
+    def then(self, *others: TimedTrajectory) -> TimedTrajectory:
+        """This trajectory followed by `others` (each must start where the previous ended)."""
+        return concatenate([self, *others])
+
+    def stretched(self, num_steps: int) -> TimedTrajectory:
+        """The same path played uniformly slower so it lasts `num_steps` control periods.
+
+        Velocity, acceleration and jerk scale by 1/k, 1/k^2, 1/k^3 (k >= 1), so limits keep
+        holding. Refused for trajectories with a non-zero boundary velocity piece (a throw).
+        """
+        if num_steps < self.num_steps:
+            raise PlanningError(
+                "timing_infeasible",
+                f"cannot compress {self.num_steps} steps into {num_steps} without breaking limits",
+            )
+        if num_steps == self.num_steps:
+            return self
+        if self.num_steps == 0:
+            return TimedTrajectory.hold(self.goal, num_steps, self.dt)
+        if not self._timeline.stretchable:
+            raise PlanningError("timing_infeasible", "a throw trajectory cannot be stretched")
+        k = num_steps / self.num_steps
+        return TimedTrajectory._sample(_Scaled(self._timeline, k), self.dt)
+
+    def delayed(self, steps: int) -> TimedTrajectory:
+        """Wait `steps` control periods at the start, then play this trajectory."""
+        if steps <= 0:
+            return self
+        return TimedTrajectory.hold(self.start, steps, self.dt).then(self)
+
+    def padded(self, num_steps: int) -> TimedTrajectory:
+        """Hold the goal at the end so the trajectory lasts `num_steps` periods (>= current)."""
+        if num_steps <= self.num_steps:
+            return self
+        return self.then(TimedTrajectory.hold(self.goal, num_steps - self.num_steps, self.dt))
+
+    def arm(self, side: Side) -> TimedTrajectory:
+        """One arm's 6 joints of a 12-DoF trajectory."""
+        if self.n != 12:
+            raise ValueError(f"arm() needs a 12-DoF trajectory, this one has {self.n} DoF")
+        sl = ARM_SLICES[side]
+        return TimedTrajectory(
+            self.dt, self.q[:, sl], self.qd[:, sl], self.qdd[:, sl], _Select(self._timeline, sl)
+        )
+
+    # -- checks and actions ------------------------------------------------------------------
+
+    def limit_ratios(self, limits: JointLimits) -> dict[str, float]:
+        """max |qd|/vmax and |qdd|/amax over samples, and the worst position-limit violation."""
+        _check_dim(limits, self.n)
+        below = np.max(limits.lower - self.q)
+        above = np.max(self.q - limits.upper)
+        return {
+            "velocity": float(np.max(np.abs(self.qd) / limits.velocity)),
+            "acceleration": float(np.max(np.abs(self.qdd) / limits.acceleration)),
+            "position_violation": float(max(below, above, 0.0)),
+        }
+
+    def check_limits(self, limits: JointLimits, tol: float = _LIMIT_TOL) -> None:
+        """Raise PlanningError('timing_limits') if any sample breaks a limit."""
+        r = self.limit_ratios(limits)
+        if r["velocity"] > 1 + tol or r["acceleration"] > 1 + tol or r["position_violation"] > tol:
+            raise PlanningError("timing_limits", f"limits broken at a sample: {r}")
+
+    def to_actions(self, left_opening: Opening = 1.0, right_opening: Opening = 1.0) -> np.ndarray:
+        """(N, 14) actions ``[left 6, left opening, right 6, right opening]`` of a 12-DoF
+        trajectory. An opening is a constant, an (N,) array or a callable ``times -> (N,)``."""
+        if self.n != 12:
+            raise ValueError(f"to_actions needs a 12-DoF trajectory, this one has {self.n} DoF")
+        n = len(self.q)
+        out = np.empty((n, 14))
+        out[:, 0:6], out[:, 7:13] = self.q[:, 0:6], self.q[:, 6:12]
+        out[:, 6] = _opening_array(left_opening, self.times)
+        out[:, 13] = _opening_array(right_opening, self.times)
+        return out
+
+
+class _Select(_Timeline):
+    def __init__(self, inner: _Timeline, sl: slice) -> None:
+        self.inner, self.sl = inner, sl
+        self.duration, self.stretchable = inner.duration, inner.stretchable
+        self.n = len(range(*sl.indices(inner.n)))
+
+    def evaluate(self, t: float) -> State:
+        return tuple(x[self.sl] for x in self.inner.evaluate(t))  # type: ignore[return-value]
+
+
+Opening = float | np.ndarray | Callable[[np.ndarray], np.ndarray]
+
+
+def _opening_array(opening: Opening, times: np.ndarray) -> np.ndarray:
+    values = opening(times) if callable(opening) else opening
+    arr = np.broadcast_to(np.asarray(values, dtype=float), times.shape)
+    return np.clip(arr, 0.0, 1.0)
+
+
+def concatenate(trajectories: Sequence[TimedTrajectory], tol: float = 1e-6) -> TimedTrajectory:
+    """Play trajectories one after another; each must start at the previous one's end state."""
+    trajs = list(trajectories)
+    if not trajs:
+        raise ValueError("concatenate needs at least one trajectory")
+    dt, n = trajs[0].dt, trajs[0].n
+    for a, b in zip(trajs, trajs[1:], strict=False):
+        if b.dt != dt or b.n != n:
+            raise ValueError("concatenate: trajectories differ in dt or number of joints")
+        gap = max(np.max(np.abs(a.q[-1] - b.q[0])), np.max(np.abs(a.qd[-1] - b.qd[0])))
+        if gap > tol:
+            raise PlanningError("timing_discontinuous", f"segments do not join (gap {gap:.3g})")
+    if len(trajs) == 1:
+        return trajs[0]
+    stack = [trajs[0].q] + [t.q[1:] for t in trajs[1:]]
+    q = np.vstack(stack)
+    qd = np.vstack([trajs[0].qd] + [t.qd[1:] for t in trajs[1:]])
+    qdd = np.vstack([trajs[0].qdd] + [t.qdd[1:] for t in trajs[1:]])
+    return TimedTrajectory(dt, q, qd, qdd, _Concat([t._timeline for t in trajs]))
+
+
+def stack_arms(left: TimedTrajectory, right: TimedTrajectory) -> TimedTrajectory:
+    """[left, right] side by side; the shorter one holds its goal until the longer one ends."""
+    if left.dt != right.dt:
+        raise ValueError("stack_arms: trajectories differ in dt")
+    steps = max(left.num_steps, right.num_steps)
+    left, right = left.padded(steps), right.padded(steps)
+    return TimedTrajectory(
+        left.dt,
+        np.hstack([left.q, right.q]),
+        np.hstack([left.qd, right.qd]),
+        np.hstack([left.qdd, right.qdd]),
+        _Stack([left._timeline, right._timeline]),
+    )
+
+
+# --------------------------------------------------------------------------------------------
+# Paths
+# --------------------------------------------------------------------------------------------
+
+
+def _check_dim(limits: JointLimits, n: int) -> None:
+    if limits.n != n:
+        raise ValueError(f"limits are for {limits.n} joints, the motion has {n}")
+
+
+def _merge_collinear(points: np.ndarray, tol: float) -> np.ndarray:
+    """Drop repeated points and interior points lying on the line between their neighbours."""
+    keep = [points[0]]
+    for p in points[1:]:
+        if np.linalg.norm(p - keep[-1]) > tol:
+            keep.append(p)
+    pts = np.array(keep)
+    if len(pts) <= 2:
+        return pts
+    out = [pts[0]]
+    run_start = 0
+    for i in range(2, len(pts)):
+        # Can the run pts[run_start..i] be one segment?  All interior points on the chord, in order.
+        a, b = pts[run_start], pts[i]
+        chord = b - a
+        length2 = float(chord @ chord)
+        inner = pts[run_start + 1 : i]
+        s = (inner - a) @ chord / length2
+        off = np.linalg.norm(inner - a - s[:, None] * chord, axis=1)
+        ordered = np.all(np.diff(np.concatenate([[0.0], s, [1.0]])) > 0)
+        if not (ordered and np.all(off <= tol)):
+            out.append(pts[i - 1])
+            run_start = i - 1
+    out.append(pts[-1])
+    return np.array(out)
+
+
+def _path_limits(dq: np.ndarray, limits: JointLimits) -> tuple[float, float, float]:
+    moving = np.abs(dq) > 0
+    mag = np.abs(dq[moving])
+    return (
+        float(np.min(limits.velocity[moving] / mag)),
+        float(np.min(limits.acceleration[moving] / mag)),
+        float(np.min(limits.jerk[moving] / mag)),
+    )
+
+
+def _ruckig_1dof(vmax: float, amax: float, jmax: float, dt: float) -> Trajectory:
+    inp = InputParameter(1)
+    inp.current_position, inp.current_velocity, inp.current_acceleration = [0.0], [0.0], [0.0]
+    inp.target_position, inp.target_velocity, inp.target_acceleration = [1.0], [0.0], [0.0]
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = [vmax], [amax], [jmax]
+    inp.duration_discretization = DurationDiscretization.Discrete
+    return _calculate(Ruckig(1, dt), inp, 1, "path segment")
+
+
+def _calculate(otg: Ruckig, inp: InputParameter, n: int, what: str) -> Trajectory:
+    traj = Trajectory(n)
+    try:
+        result = otg.calculate(inp, traj)
+    except RuntimeError as exc:  # ruckig raises on invalid input
+        raise PlanningError("timing_failed", f"ruckig {what}: {exc}") from exc
+    if result not in (Result.Working, Result.Finished):
+        raise PlanningError("timing_failed", f"ruckig {what}: {result}")
+    return traj
+
+
+def time_path(
+    waypoints: np.ndarray,
+    limits: JointLimits,
+    dt: float = CONTROL_DT,
+    *,
+    merge_tol: float = 1e-9,
+) -> TimedTrajectory:
+    """Time a joint polyline exactly along its segments, at rest at every corner.
+
+    `waypoints` is (K, n) (n = 12 moves both arms together: they start and arrive together).
+    Each straight run is a 1-DoF jerk-limited Ruckig profile of its path parameter lasting a
+    whole number of control periods; corners are visited at rest. Raises
+    ``PlanningError('joint_limits')`` if a waypoint is outside the position limits.
+    """
+    pts = np.atleast_2d(np.asarray(waypoints, dtype=float))
+    _check_dim(limits, pts.shape[1])
+    if not np.all(np.isfinite(pts)):
+        raise PlanningError("timing_failed", "waypoints contain non-finite values")
+    bad = (pts < limits.lower - 1e-9) | (pts > limits.upper + 1e-9)
+    if np.any(bad):
+        k, j = np.argwhere(bad)[0]
+        raise PlanningError(
+            "joint_limits", f"waypoint {k} joint {j} = {pts[k, j]:.4f} out of range"
+        )
+    pts = _merge_collinear(pts, merge_tol)
+    parts: list[TimedTrajectory] = []
+    for a, b in zip(pts, pts[1:], strict=False):
+        dq = b - a
+        traj = _ruckig_1dof(*_path_limits(dq, limits), dt)
+        parts.append(TimedTrajectory._sample(_PathSegment(a, b, traj), dt))
+    if not parts:
+        return TimedTrajectory.hold(pts[0], 0, dt)
+    return concatenate(parts)
+
+
+def synchronize(
+    *trajectories: TimedTrajectory, num_steps: int | None = None
+) -> list[TimedTrajectory]:
+    """Stretch trajectories so all end at the same control step (the slowest's, or `num_steps`).
+
+    Stretching is a uniform slow-down of each path, so paths and limits are kept.
+    """
+    longest = max(t.num_steps for t in trajectories)
+    steps = longest if num_steps is None else num_steps
+    if steps < longest:
+        raise PlanningError(
+            "timing_infeasible", f"needs {longest} control steps, {steps} were requested"
+        )
+    return [t.stretched(steps) for t in trajectories]
+
+
+def rendezvous(
+    left_path: np.ndarray,
+    right_path: np.ndarray,
+    limits: JointLimits,
+    dt: float = CONTROL_DT,
+    *,
+    arrive_at: float | None = None,
+) -> TimedTrajectory:
+    """Both arms follow their own paths ((K, 6) each) and reach their last waypoints (the
+    meeting configurations, e.g. for a handover) at the same control step.
+
+    `limits` are 12-DoF. `arrive_at` (s from the start, rounded up to the grid) requests a later
+    common arrival; ``PlanningError('timing_infeasible')`` if an arm cannot make it by then.
+    """
+    _check_dim(limits, 12)
+    left = time_path(left_path, limits.select(ARM_SLICES["left"]), dt)
+    right = time_path(right_path, limits.select(ARM_SLICES["right"]), dt)
+    steps = None if arrive_at is None else _steps_at_least(arrive_at, dt)
+    left, right = synchronize(left, right, num_steps=steps)
+    return stack_arms(left, right)
+
+
+def _steps_at_least(t: float, dt: float) -> int:
+    return max(int(np.ceil(t / dt - 1e-9)), 0)
+
+
+# --------------------------------------------------------------------------------------------
+# Throw and catch
+# --------------------------------------------------------------------------------------------
+
+
+def release_joint_velocity(
+    jacobian: np.ndarray | Callable[[np.ndarray], np.ndarray],
+    q: np.ndarray,
+    tcp_velocity: np.ndarray,
+    tol: float = 1e-3,
+) -> np.ndarray:
+    """Joint velocity that gives the TCP `tcp_velocity` at configuration `q`.
+
+    `jacobian` is a (3, n) translational Jacobian, or a (6, n) spatial one with rows
+    ``[angular; linear]`` (Drake's order), or a callable ``q -> J``. A 3-vector velocity uses
+    only the linear rows (the minimum-norm solution leaves the wrist free); a 6-vector is a full
+    spatial velocity ``[w; v]``. ``PlanningError('throw_unreachable')`` if J cannot produce it.
+    """
+    J = np.asarray(jacobian(np.asarray(q, float)) if callable(jacobian) else jacobian, float)
+    v = np.asarray(tcp_velocity, dtype=float)
+    if J.shape[0] == 6 and v.shape == (3,):
+        J = J[3:]
+    if J.shape[0] != v.shape[0]:
+        raise ValueError(f"Jacobian has {J.shape[0]} rows, velocity has {v.shape[0]}")
+    qd, *_ = np.linalg.lstsq(J, v, rcond=1e-6)
+    residual = float(np.linalg.norm(J @ qd - v))
+    if residual > tol * max(1.0, float(np.linalg.norm(v))):
+        raise PlanningError(
+            "throw_unreachable", f"the TCP velocity is out of the Jacobian's range ({residual:.3g})"
+        )
+    return qd
+
+
+@dataclass(frozen=True)
+class ThrowPlan:
+    """A throwing arm's motion: from rest through the release state, braking to rest.
+
+    At sample ``release_index`` (time ``release_time = release_index * dt``) the arm is exactly at
+    ``q_release`` with velocity ``qd_release``; it moves at that constant velocity for
+    ``coast`` = (before, after) control periods around the release, so the first-order hold
+    between actions reproduces the release velocity exactly. Command the gripper opening in
+    action ``release_index``: the station's hold ramps the jaw open during the following period,
+    while (with the default coast of (1, 1)) the arm target still moves at exactly ``qd_release``.
+    """
+
+    trajectory: TimedTrajectory
+    release_index: int
+    q_release: np.ndarray
+    qd_release: np.ndarray
+    coast: tuple[int, int]
+
+    @property
+    def release_time(self) -> float:
+        return self.release_index * self.trajectory.dt
+
+
+def throw_release(
+    q_start: np.ndarray,
+    q_release: np.ndarray,
+    limits: JointLimits,
+    dt: float = CONTROL_DT,
+    *,
+    qd_release: np.ndarray | None = None,
+    tcp_velocity: np.ndarray | None = None,
+    jacobian: np.ndarray | Callable[[np.ndarray], np.ndarray] | None = None,
+    release_at: float | None = None,
+    coast: tuple[int, int] = (1, 1),
+) -> ThrowPlan:
+    """Plan a throw for one arm: reach `q_release` with a non-zero velocity on a control step.
+
+    Give the release joint velocity `qd_release` directly, or `tcp_velocity` plus `jacobian` (see
+    :func:`release_joint_velocity`). The arm starts at rest at `q_start`; Ruckig (Time
+    synchronization, target velocity = release velocity) brings it to the start of the coast; it
+    coasts through the release at constant velocity; a velocity-interface Ruckig brakes it to rest.
+    `release_at` (s, rounded up to the grid) asks for a later release. Every sample is checked
+    against `limits` (position limits included): ``PlanningError('throw_*' / 'timing_limits')``.
+    """
+    q0 = np.asarray(q_start, dtype=float)
+    q_rel = np.asarray(q_release, dtype=float)
+    n = len(q0)
+    _check_dim(limits, n)
+    if qd_release is None:
+        if tcp_velocity is None or jacobian is None:
+            raise ValueError("give qd_release, or tcp_velocity and jacobian")
+        qd_release = release_joint_velocity(jacobian, q_rel, tcp_velocity)
+    v = np.asarray(qd_release, dtype=float)
+    if np.any(np.abs(v) > limits.velocity):
+        j = int(np.argmax(np.abs(v) / limits.velocity))
+        raise PlanningError(
+            "throw_too_fast",
+            f"release velocity of joint {j} is {v[j]:.3f} rad/s, limit {limits.velocity[j]:.3f}",
+        )
+    before, after = coast
+    if before < 0 or after < 0:
+        raise ValueError("coast steps must be >= 0")
+    q_coast0 = q_rel - before * dt * v
+    q_coast1 = q_rel + after * dt * v
+
+    otg = Ruckig(n, dt)
+    inp = _inputs(n, limits, q0, np.zeros(n))
+    inp.target_position, inp.target_velocity = list(q_coast0), list(v)
+    inp.target_acceleration = [0.0] * n
+    inp.synchronization = Synchronization.Time
+    if release_at is not None:
+        steps = _steps_at_least(release_at, dt) - before
+        if steps <= 0:
+            raise PlanningError("timing_infeasible", f"release at {release_at} s is too early")
+        inp.minimum_duration = steps * dt
+    approach = _calculate(otg, inp, n, "throw approach")
+    if release_at is not None and approach.duration > inp.minimum_duration + _GRID_TOL:
+        raise PlanningError(
+            "timing_infeasible",
+            f"the release needs {approach.duration + before * dt:.3f} s, asked for {release_at}",
+        )
+
+    brake_inp = _inputs(n, limits, q_coast1, v)
+    brake_inp.control_interface = ControlInterface.Velocity
+    brake_inp.target_velocity, brake_inp.target_acceleration = [0.0] * n, [0.0] * n
+    brake_inp.synchronization = Synchronization.Time
+    brake = _calculate(otg, brake_inp, n, "throw brake")
+
+    pieces: list[_Timeline] = [_RuckigSegment(approach, stretchable=False)]
+    if before + after:
+        pieces.append(_Linear(q_coast0, v, (before + after) * dt))
+    pieces.append(_RuckigSegment(brake, stretchable=False))
+    trajectory = concatenate([TimedTrajectory._sample(p, dt) for p in pieces])
+    release_index = int(round(approach.duration / dt)) + before
+    trajectory.q[release_index] = q_rel  # exactly on the release state
+    trajectory.qd[release_index] = v
+    # Ruckig's position_extrema are unreliable with time synchronization + discrete durations
+    # (measured: 5 cm low), so sweep the continuous motion at 10 samples per control period.
+    dense = np.array(
+        [trajectory.at(t)[0] for t in np.linspace(0, trajectory.duration, 10 * len(trajectory.q))]
+    )
+    lo, hi = dense.min(axis=0), dense.max(axis=0)
+    if np.any(lo < limits.lower - 1e-9) or np.any(hi > limits.upper + 1e-9):
+        j = int(np.argmax(np.maximum(limits.lower - lo, hi - limits.upper)))
+        raise PlanningError(
+            "throw_joint_limits",
+            f"joint {j} sweeps [{lo[j]:.3f}, {hi[j]:.3f}], limits "
+            f"[{limits.lower[j]:.3f}, {limits.upper[j]:.3f}]",
+        )
+    trajectory.check_limits(limits)
+    return ThrowPlan(trajectory, release_index, q_rel, v, (before, after))
+
+
+def _inputs(n: int, limits: JointLimits, q: np.ndarray, v: np.ndarray) -> InputParameter:
+    inp = InputParameter(n)
+    inp.current_position, inp.current_velocity = list(q), list(v)
+    inp.current_acceleration = [0.0] * n
+    inp.max_velocity = list(limits.velocity)
+    inp.max_acceleration = list(limits.acceleration)
+    inp.max_jerk = list(limits.jerk)
+    inp.duration_discretization = DurationDiscretization.Discrete
+    return inp
+
+
+def ballistic_landing(
+    p0: np.ndarray, v0: np.ndarray, z_land: float, g: float = GRAVITY
+) -> tuple[np.ndarray, float]:
+    """Where and when a point released at `p0` with velocity `v0` comes down to height `z_land`.
+
+    Returns (landing point, flight time), taking the descending crossing. Drag is ignored.
+    ``PlanningError('throw_unreachable')`` if the apex stays below `z_land`.
+    """
+    p0, v0 = np.asarray(p0, dtype=float), np.asarray(v0, dtype=float)
+    dz = p0[2] - z_land
+    disc = v0[2] ** 2 + 2 * g * dz
+    if disc < 0:
+        raise PlanningError("throw_unreachable", f"the object never comes down to z = {z_land}")
+    t = (v0[2] + np.sqrt(disc)) / g
+    if t <= 0:
+        raise PlanningError("throw_unreachable", "the landing height is behind the release")
+    land = p0 + v0 * t + np.array([0.0, 0.0, -0.5 * g * t * t])
+    land[2] = z_land
+    return land, float(t)
+
+
+@dataclass(frozen=True)
+class CatchSchedule:
+    """When the catcher moves: start step, the step it is in place, the predicted landing."""
+
+    start_index: int
+    arrival_index: int
+    landing_time: float
+    slack: float  # s between the catcher's arrival and the landing
+
+
+def schedule_catch(
+    release_time: float,
+    flight_time: float,
+    catcher: TimedTrajectory,
+    *,
+    margin: float = 0.2,
+    start: Literal["early", "late"] = "early",
+) -> CatchSchedule:
+    """Start step of the catcher's trajectory so it is in place `margin` s before landing.
+
+    "early" starts at step 0 (waits in place longest); "late" starts as late as the margin allows.
+    ``PlanningError('catch_too_late')`` if even starting at once leaves less than `margin`.
+    """
+    dt = catcher.dt
+    landing = release_time + flight_time
+    latest_arrival = int(np.floor((landing - margin) / dt + 1e-9))
+    latest_start = latest_arrival - catcher.num_steps
+    if latest_start < 0:
+        raise PlanningError(
+            "catch_too_late",
+            f"catcher needs {catcher.duration:.3f} s, object lands at {landing:.3f} s "
+            f"(margin {margin} s)",
+        )
+    start_index = 0 if start == "early" else latest_start
+    arrival = start_index + catcher.num_steps
+    return CatchSchedule(start_index, arrival, landing, landing - arrival * dt)
+
+
+@dataclass(frozen=True)
+class ThrowCatchPlan:
+    """Two-arm throw and catch on one 12-DoF trajectory."""
+
+    trajectory: TimedTrajectory
+    throw: ThrowPlan
+    catch: CatchSchedule
+    thrower: Side
+
+
+def throw_and_catch(
+    throw: ThrowPlan,
+    catcher: TimedTrajectory,
+    flight_time: float,
+    thrower: Side,
+    *,
+    margin: float = 0.2,
+    start: Literal["early", "late"] = "early",
+    hold_after: float = 0.5,
+) -> ThrowCatchPlan:
+    """Combine a throwing arm's :class:`ThrowPlan` and the catcher's 6-DoF trajectory (to its
+    catching pose) into one 12-DoF trajectory; the catcher is in place `margin` s before the
+    predicted landing, and both then hold for at least `hold_after` s past the landing."""
+    schedule = schedule_catch(throw.release_time, flight_time, catcher, margin=margin, start=start)
+    catcher = catcher.delayed(schedule.start_index)
+    dt = catcher.dt
+    end = max(
+        throw.trajectory.num_steps,
+        catcher.num_steps,
+        _steps_at_least(schedule.landing_time + hold_after, dt),
+    )
+    throwing, catching = throw.trajectory.padded(end), catcher.padded(end)
+    pair = (throwing, catching) if thrower == "left" else (catching, throwing)
+    return ThrowCatchPlan(stack_arms(*pair), throw, schedule, thrower)
+
+
+# --------------------------------------------------------------------------------------------
+# Gripper schedules
+# --------------------------------------------------------------------------------------------
+
+
+def opening_rate(gripper: GripperSpec) -> float:
+    """The fastest opening change the finger velocity limit allows (opening units per second)."""
+    return gripper.finger_velocity_limit / (gripper.finger_max - gripper.finger_min)
+
+
+def gripper_schedule(
+    num_samples: int,
+    initial: float,
+    events: Sequence[tuple[int, float]] = (),
+    *,
+    rate: float | None = None,
+    dt: float = CONTROL_DT,
+) -> np.ndarray:
+    """Opening per sample: starts at `initial`; at sample index i of each ``(i, target)`` event
+    it moves to `target` - at once, or at `rate` opening units per second."""
+    out = np.empty(num_samples)
+    value, target, k_event = float(initial), float(initial), 0
+    evs = sorted(events)
+    step = np.inf if rate is None else rate * dt
+    for k in range(num_samples):
+        while k_event < len(evs) and evs[k_event][0] <= k:
+            target = float(evs[k_event][1])
+            k_event += 1
+        value += float(np.clip(target - value, -step, step))
+        out[k] = value
+    return np.clip(out, 0.0, 1.0)
