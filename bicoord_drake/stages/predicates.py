@@ -1,0 +1,317 @@
+"""Reusable, parameterized stage predicates: each factory returns a named :class:`Predicate`.
+
+>>> sub_goal = on_top_of("small", "large") & released("small") & at_rest("small")
+>>> sub_goal                                   # doctest: +ELLIPSIS
+(on_top_of('small', 'large', ...) & released('small') & at_rest('small', ...))
+
+Geometry comes from the scene: each object's axis-aligned box in its own frame (``local_bounds``)
+is placed at the object's current pose. Heights are world z; the table top is
+:data:`~bicoord_drake.models.scene.TABLE_TOP`. Combine predicates with ``&``, ``|``, ``~``,
+:func:`all_of`, :func:`any_of`, :func:`count_true` and :func:`fraction_true` (partial credit).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from functools import lru_cache
+
+import numpy as np
+
+from bicoord_drake.models.objects import BowlShape, BoxShape, CylinderShape, Shape, SphereShape
+from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.stages.stage import GRIPPER_INDEX, WorldState
+
+#: A gripper commanded at or above this opening counts as open, below it as closed.
+OPEN_AT = 0.5
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+class Predicate:
+    """A named function of a :class:`WorldState` returning a bool (or a fraction in [0, 1])."""
+
+    __slots__ = ("fn", "name")
+
+    def __init__(self, fn: Callable[[WorldState], bool | float], name: str) -> None:
+        self.fn = fn
+        self.name = name
+
+    def __call__(self, state: WorldState) -> bool | float:
+        value = self.fn(state)
+        return bool(value) if isinstance(value, bool | np.bool_) else float(value)
+
+    def __and__(self, other: Callable) -> Predicate:
+        return all_of(self, other)
+
+    def __or__(self, other: Callable) -> Predicate:
+        return any_of(self, other)
+
+    def __invert__(self) -> Predicate:
+        return not_(self)
+
+    def __repr__(self) -> str:
+        return self.name
+
+
+def _name(p: Callable) -> str:
+    return getattr(p, "name", getattr(p, "__name__", repr(p)))
+
+
+# --------------------------------------------------------------------------- geometry
+def local_bounds(shape: Shape) -> tuple[np.ndarray, np.ndarray]:
+    """(min, max) corners of the shape's axis-aligned box in the object frame (read-only)."""
+    return _local_bounds(shape)
+
+
+@lru_cache(maxsize=256)
+def _local_bounds(shape: Shape) -> tuple[np.ndarray, np.ndarray]:
+    lo, hi = _bounds(shape)
+    lo, hi = np.array(lo, dtype=float), np.array(hi, dtype=float)
+    lo.setflags(write=False)
+    hi.setflags(write=False)
+    return lo, hi
+
+
+def _bounds(shape: Shape) -> tuple[np.ndarray, np.ndarray]:
+    if isinstance(shape, BoxShape):
+        half = np.asarray(shape.size) / 2
+        return -half, half
+    if isinstance(shape, CylinderShape):
+        half = np.array([shape.radius, shape.radius, shape.length / 2])
+        return -half, half
+    if isinstance(shape, SphereShape):
+        return -np.full(3, shape.radius), np.full(3, shape.radius)
+    if isinstance(shape, BowlShape):
+        return np.array([-shape.radius, -shape.radius, 0.0]), np.array(
+            [shape.radius, shape.radius, shape.height]
+        )
+    points = np.concatenate([p.trimesh().bounds for p in shape.primitives()])
+    return points.min(axis=0), points.max(axis=0)
+
+
+def world_corners(state: WorldState, name: str) -> np.ndarray:
+    """(8, 3) corners of the object's local box, in world."""
+    lo, hi = local_bounds(state.shape(name))
+    corners = np.array(
+        [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+    )
+    return corners @ state.rotation(name).T + state.position(name)
+
+
+def bottom_z(state: WorldState, name: str) -> float:
+    """Lowest world height of the object's box."""
+    return float(world_corners(state, name)[:, 2].min())
+
+
+def top_z(state: WorldState, name: str) -> float:
+    """Highest world height of the object's box."""
+    return float(world_corners(state, name)[:, 2].max())
+
+
+def centre(state: WorldState, name: str) -> np.ndarray:
+    """World position of the centre of the object's box."""
+    lo, hi = local_bounds(state.shape(name))
+    return state.rotation(name) @ ((lo + hi) / 2) + state.position(name)
+
+
+def tilt(state: WorldState, name: str, axis: str = "z") -> float:
+    """Angle (rad) between the object's `axis` and world +z."""
+    a = state.rotation(name)[:, _AXES[axis]]
+    return float(math.acos(np.clip(a[2], -1.0, 1.0)))
+
+
+def xy_distance(state: WorldState, name: str, target_xy: Sequence[float]) -> float:
+    return float(np.linalg.norm(centre(state, name)[:2] - np.asarray(target_xy, dtype=float)))
+
+
+# --------------------------------------------------------------------------- predicates
+def lifted(obj: str, height: float = 0.03, reference: str = "initial") -> Predicate:
+    """`obj` raised by at least `height`: its frame above its initial height (``"initial"``), or
+    its bottom above the table top (``"table"``)."""
+    if reference not in ("initial", "table"):
+        raise ValueError("reference must be 'initial' or 'table'")
+
+    def check(s: WorldState) -> bool:
+        if reference == "table":
+            return bottom_z(s, obj) >= TABLE_TOP + height
+        return s.position(obj)[2] - s.initial_pose(obj)[2] >= height
+
+    return Predicate(check, f"lifted({obj!r}, height={height}, reference={reference!r})")
+
+
+def on_top_of(a: str, b: str, xy_tol: float = 0.02, z_tol: float = 0.01) -> Predicate:
+    """`a` rests on `b`: centres within `xy_tol` in xy, a's bottom within `z_tol` of b's top."""
+
+    def check(s: WorldState) -> bool:
+        near = np.linalg.norm(centre(s, a)[:2] - centre(s, b)[:2]) <= xy_tol
+        return bool(near and abs(bottom_z(s, a) - top_z(s, b)) <= z_tol)
+
+    return Predicate(check, f"on_top_of({a!r}, {b!r}, xy_tol={xy_tol}, z_tol={z_tol})")
+
+
+def above(a: str, b: str, xy_tol: float = 0.04, min_dz: float = 0.02) -> Predicate:
+    """`a` over `b` (e.g. a nested bowl): frames within `xy_tol` in xy, a at least `min_dz`
+    higher."""
+
+    def check(s: WorldState) -> bool:
+        d = s.position(a) - s.position(b)
+        return bool(np.linalg.norm(d[:2]) <= xy_tol and d[2] >= min_dz)
+
+    return Predicate(check, f"above({a!r}, {b!r}, xy_tol={xy_tol}, min_dz={min_dz})")
+
+
+def on_table(obj: str, z_tol: float = 0.01, support_z: float = TABLE_TOP) -> Predicate:
+    """`obj`'s bottom within `z_tol` of the support height (default: the table top)."""
+    return Predicate(
+        lambda s: abs(bottom_z(s, obj) - support_z) <= z_tol, f"on_table({obj!r}, z_tol={z_tol})"
+    )
+
+
+def inside(obj: str, container: str, margin: float = 0.0, z_above: float = 0.0) -> Predicate:
+    """`obj`'s centre within `container`'s box, in the container's frame (tilts are handled):
+    xy shrunk by `margin`, z from its bottom to its top + `z_above`."""
+
+    def check(s: WorldState) -> bool:
+        lo, hi = local_bounds(s.shape(container))
+        p = s.rotation(container).T @ (centre(s, obj) - s.position(container))
+        in_xy = np.all(p[:2] >= lo[:2] + margin) and np.all(p[:2] <= hi[:2] - margin)
+        return bool(in_xy and lo[2] - 1e-3 <= p[2] <= hi[2] + z_above)
+
+    return Predicate(check, f"inside({obj!r}, {container!r}, margin={margin})")
+
+
+def released(obj: str, open_at: float = OPEN_AT) -> Predicate:
+    """Both grippers commanded open (opening >= `open_at`) and no finger touching `obj`."""
+
+    def check(s: WorldState) -> bool:
+        opened = all(s.action[i] >= open_at for i in GRIPPER_INDEX.values())
+        return opened and not s.touching(obj)
+
+    return Predicate(check, f"released({obj!r})")
+
+
+def held_by(obj: str, side: str = "any", closed_below: float = OPEN_AT) -> Predicate:
+    """`obj` touched by the fingers of a closed gripper: `side` is 'left', 'right', 'both' or
+    'any'."""
+    if side not in ("left", "right", "both", "any"):
+        raise ValueError("side must be 'left', 'right', 'both' or 'any'")
+    sides = {"left": ("left",), "right": ("right",), "both": ("left", "right")}
+
+    def holds(s: WorldState, arm: str) -> bool:
+        return arm in s.touching(obj) and s.opening(arm) < closed_below
+
+    def check(s: WorldState) -> bool:
+        if side == "any":
+            return holds(s, "left") or holds(s, "right")
+        return all(holds(s, arm) for arm in sides[side])
+
+    return Predicate(check, f"held_by({obj!r}, {side!r})")
+
+
+def upright(obj: str, max_tilt: float = math.radians(15), axis: str = "z") -> Predicate:
+    """The object's `axis` within `max_tilt` (rad) of vertical (either way up)."""
+
+    def check(s: WorldState) -> bool:
+        t = tilt(s, obj, axis)
+        return min(t, math.pi - t) <= max_tilt
+
+    return Predicate(check, f"upright({obj!r}, max_tilt={max_tilt:.3g}, axis={axis!r})")
+
+
+def level(obj: str, axis: str = "x", max_tilt: float = math.radians(15)) -> Predicate:
+    """The object's `axis` within `max_tilt` (rad) of horizontal (e.g. a roller held level)."""
+    return Predicate(
+        lambda s: abs(math.pi / 2 - tilt(s, obj, axis)) <= max_tilt,
+        f"level({obj!r}, axis={axis!r}, max_tilt={max_tilt:.3g})",
+    )
+
+
+def at_rest(obj: str, linear_tol: float = 0.01, angular_tol: float = 0.1) -> Predicate:
+    """Speed below `linear_tol` (m/s) and angular speed below `angular_tol` (rad/s), from the
+    velocities in the world state (see :class:`WorldState`)."""
+
+    def check(s: WorldState) -> bool:
+        v = s.velocity(obj)
+        return bool(np.linalg.norm(v[:3]) <= linear_tol and np.linalg.norm(v[3:]) <= angular_tol)
+
+    return Predicate(check, f"at_rest({obj!r}, linear_tol={linear_tol}, angular_tol={angular_tol})")
+
+
+def within_xy(obj: str, target_xy: Sequence[float], tol: float = 0.02) -> Predicate:
+    """The object's centre within `tol` of a world (x, y)."""
+    xy = tuple(float(v) for v in target_xy)
+    return Predicate(lambda s: xy_distance(s, obj, xy) <= tol, f"within_xy({obj!r}, {xy}, {tol})")
+
+
+def filled_cells(
+    state: WorldState,
+    objects: Sequence[str],
+    cells_xy: Sequence[Sequence[float]],
+    tol: float = 0.01,
+    z_tol: float = 0.01,
+    support_z: float = TABLE_TOP,
+) -> int:
+    """How many cells hold an object resting on the support with its centre within `tol`."""
+    resting = [o for o in objects if abs(bottom_z(state, o) - support_z) <= z_tol]
+    xy = np.array([centre(state, o)[:2] for o in resting]).reshape(-1, 2)
+    cells = np.asarray(cells_xy, dtype=float).reshape(-1, 2)
+    if not len(xy):
+        return 0
+    dist = np.linalg.norm(cells[:, None, :] - xy[None, :, :], axis=2)
+    return int(np.sum(dist.min(axis=1) <= tol))
+
+
+def cells_filled(
+    objects: Sequence[str],
+    cells_xy: Sequence[Sequence[float]],
+    k: int,
+    tol: float = 0.01,
+    z_tol: float = 0.01,
+    support_z: float = TABLE_TOP,
+) -> Predicate:
+    """At least `k` of the cells are filled (see :func:`filled_cells`)."""
+    objects, cells = tuple(objects), tuple(tuple(c) for c in cells_xy)
+    return Predicate(
+        lambda s: filled_cells(s, objects, cells, tol, z_tol, support_z) >= k,
+        f"cells_filled({k} of {len(cells)}, tol={tol})",
+    )
+
+
+# --------------------------------------------------------------------------- combinators
+def all_of(*preds: Callable) -> Predicate:
+    """True when every predicate holds in full."""
+    return Predicate(
+        lambda s: min(float(p(s)) for p in preds) >= 1.0,
+        "(" + " & ".join(_name(p) for p in preds) + ")",
+    )
+
+
+def any_of(*preds: Callable) -> Predicate:
+    """True when at least one predicate holds in full."""
+    return Predicate(
+        lambda s: any(float(p(s)) >= 1.0 for p in preds),
+        "(" + " | ".join(_name(p) for p in preds) + ")",
+    )
+
+
+def not_(pred: Callable) -> Predicate:
+    """True when the predicate does not hold in full."""
+    return Predicate(lambda s: float(pred(s)) < 1.0, f"~{_name(pred)}")
+
+
+def count_true(preds: Sequence[Callable], k: int) -> Predicate:
+    """True when at least `k` of the predicates hold."""
+    preds = tuple(preds)
+    return Predicate(
+        lambda s: sum(float(p(s)) >= 1.0 for p in preds) >= k,
+        f"count_true({k} of [{', '.join(_name(p) for p in preds)}])",
+    )
+
+
+def fraction_true(preds: Sequence[Callable]) -> Predicate:
+    """Partial credit: the fraction of predicates that hold (the stage counts at 1)."""
+    preds = tuple(preds)
+    return Predicate(
+        lambda s: sum(float(p(s)) >= 1.0 for p in preds) / len(preds),
+        f"fraction_true([{', '.join(_name(p) for p in preds)}])",
+    )

@@ -1,0 +1,17 @@
+"""The benchmark tasks, one per module, each registered with ``@register_task``.
+
+To add a task, write ``bicoord_drake/tasks/<name>.py`` and add ``"<name>"`` to ``TASK_MODULES``.
+"""
+
+from importlib import import_module
+
+from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.registry import get_task, list_tasks, register_task
+
+#: Task modules imported (and so registered) with this package.
+TASK_MODULES: tuple[str, ...] = ()
+
+for _module in TASK_MODULES:
+    import_module(f"{__name__}.{_module}")
+
+__all__ = ["TASK_MODULES", "Task", "WorldView", "get_task", "list_tasks", "register_task"]

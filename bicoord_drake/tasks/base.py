@@ -1,0 +1,201 @@
+"""The :class:`Task` interface every benchmark task implements, and the experts' world view.
+
+A task file reads top to bottom like its description::
+
+    @register_task
+    class Jigsaw(Task):
+        \"\"\"Fill the empty cells of a 3x3 grid with spare cubes.
+
+        Description: ...
+        Randomization: ...
+        Stages: ...
+        Success: ...
+        \"\"\"
+
+        name = "jigsaw"
+        step_limit = 800
+        instructions_seen = (...)
+        instructions_unseen = (...)
+
+        def sample_scene(self, seed): ...      # all randomness from default_rng(seed)
+        def stages(self, scene): ...
+        def expert(self, scene, view): ...     # yields one 14-dim action per control step
+
+A task never touches HDF5 or the simulator directly: the runner steps the simulation with the
+expert's actions and the expert reads privileged state through a read-only :class:`WorldView`.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, ClassVar, Literal
+
+import numpy as np
+
+from bicoord_drake.models.scene import Scene
+from bicoord_drake.stages.stage import SIDE_NAMES, Stage, WorldState
+
+if TYPE_CHECKING:
+    from bicoord_drake.sim.simulation import Simulation
+
+Split = Literal["seen", "unseen"]
+#: Fewest instruction paraphrases a task must provide (seen + unseen).
+MIN_INSTRUCTIONS = 10
+
+
+class WorldView:
+    """Read-only privileged state of a running simulation, for experts.
+
+    Every accessor returns fresh copies; nothing here can step or modify the simulation.
+    """
+
+    def __init__(self, sim: Simulation) -> None:
+        self._sim = sim
+
+    @property
+    def scene(self) -> Scene:
+        return self._sim.station.scene
+
+    @property
+    def embodiment(self):
+        return self._sim.station.embodiment
+
+    @property
+    def config(self):
+        """The station's (frozen) StationConfig."""
+        return self._sim.station.config
+
+    @property
+    def time(self) -> float:
+        return self._sim.time
+
+    @property
+    def steps(self) -> int:
+        """Control steps taken since reset."""
+        return self._sim.steps
+
+    def joint_state(self) -> np.ndarray:
+        """Measured [left q (6), left opening, right q (6), right opening]."""
+        return self._sim.joint_state()
+
+    def tcp_pose(self, side: str) -> np.ndarray:
+        """TCP pose of one arm: xyz + quaternion wxyz, world frame."""
+        if side not in SIDE_NAMES:
+            raise ValueError(f"side must be one of {SIDE_NAMES}, got {side!r}")
+        return self._sim.tcp_pose(side)
+
+    def object_poses(self) -> dict[str, np.ndarray]:
+        """Every scene object's pose (7,) xyz + wxyz."""
+        return {name: np.array(p) for name, p in self._sim.object_poses().items()}
+
+    def object_pose(self, name: str) -> np.ndarray:
+        poses = self._sim.object_poses()
+        if name not in poses:
+            raise KeyError(f"no object {name!r}; objects: {sorted(poses)}")
+        return np.array(poses[name])
+
+    def arm_positions(self) -> np.ndarray:
+        """Measured joint angles of both arms (12,): left 6 then right 6 (for ``Skills.sync``)."""
+        js = self.joint_state()
+        return np.concatenate([js[0:6], js[7:13]])
+
+    def gripper_openings(self) -> dict[str, float]:
+        """Measured gripper openings per side (1 = open)."""
+        js = self.joint_state()
+        return {"left": float(js[6]), "right": float(js[13])}
+
+    def object_transforms(self) -> dict:
+        """Every object's pose as a Drake ``RigidTransform`` X_WO (for ``Skills.sync``)."""
+        from pydrake.all import Quaternion, RigidTransform
+
+        return {
+            name: RigidTransform(Quaternion(p[3:] / np.linalg.norm(p[3:])), p[:3])
+            for name, p in self._sim.object_poses().items()
+        }
+
+    def finger_contacts(self) -> dict[str, set[str]]:
+        """For each object, the sides whose fingers touch it now."""
+        return {name: set(sides) for name, sides in self._sim.finger_contacts().items()}
+
+    def state(self, action: np.ndarray) -> WorldState:
+        """A :class:`WorldState` snapshot (what the stage predicates see)."""
+        return WorldState.capture(self._sim, action)
+
+
+class Task(ABC):
+    """One benchmark task: scene sampler, stages, instructions and expert.
+
+    Subclasses set the class attributes and implement :meth:`sample_scene`, :meth:`stages` and
+    :meth:`expert`; the docstring has the sections Description / Randomization / Stages /
+    Success. Instances are stateless, so one instance serves every seed.
+    """
+
+    name: ClassVar[str]
+    step_limit: ClassVar[int]
+    instructions_seen: ClassVar[tuple[str, ...]]
+    instructions_unseen: ClassVar[tuple[str, ...]]
+
+    @abstractmethod
+    def sample_scene(self, seed: int) -> Scene:
+        """The scene for `seed`: all randomness from ``np.random.default_rng(seed)``, every draw
+        recorded in ``Scene.draws`` (so episode -> scene round-trips)."""
+
+    @abstractmethod
+    def stages(self, scene: Scene) -> list[Stage]:
+        """The stage list for this scene (scores sum to 1)."""
+
+    @abstractmethod
+    def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
+        """Yield one 14-dim action per control step; read state from `view` between yields.
+
+        Raise :class:`bicoord_drake.planning.errors.PlanningError` when planning fails.
+        """
+
+    def object_count(self, scene: Scene) -> int:
+        """ON: objects the task manipulates or attends to (default: the movable ones)."""
+        return len(scene.free_objects)
+
+    def instructions(self, split: Split = "seen") -> tuple[str, ...]:
+        if split == "seen":
+            return tuple(self.instructions_seen)
+        if split == "unseen":
+            return tuple(self.instructions_unseen)
+        raise ValueError(f"split must be 'seen' or 'unseen', got {split!r}")
+
+    def instruction(self, rng: np.random.Generator, split: Split = "seen") -> str:
+        """One paraphrase of the instruction, drawn with `rng`."""
+        options = self.instructions(split)
+        return options[int(rng.integers(len(options)))]
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(name={self.name!r})"
+
+
+def check_task_class(cls: type) -> None:
+    """Raise TypeError/ValueError unless `cls` is a complete, well-formed Task subclass."""
+    if not (isinstance(cls, type) and issubclass(cls, Task)):
+        raise TypeError(f"{cls!r} is not a subclass of Task")
+    if getattr(cls, "__abstractmethods__", None):
+        missing = ", ".join(sorted(cls.__abstractmethods__))
+        raise TypeError(f"task {cls.__name__} does not implement: {missing}")
+    name = getattr(cls, "name", None)
+    if not isinstance(name, str) or not name.isidentifier() or name != name.lower():
+        raise ValueError(f"task {cls.__name__}: name must be a lower-case identifier, got {name!r}")
+    limit = getattr(cls, "step_limit", None)
+    if not isinstance(limit, int) or limit <= 0:
+        raise ValueError(f"task {name}: step_limit must be a positive int, got {limit!r}")
+    seen = tuple(getattr(cls, "instructions_seen", ()))
+    unseen = tuple(getattr(cls, "instructions_unseen", ()))
+    if not seen or not unseen:
+        raise ValueError(f"task {name}: needs both seen and unseen instructions")
+    if len(seen) + len(unseen) < MIN_INSTRUCTIONS:
+        raise ValueError(
+            f"task {name}: needs at least {MIN_INSTRUCTIONS} instruction paraphrases, "
+            f"has {len(seen) + len(unseen)}"
+        )
+    overlap = set(seen) & set(unseen)
+    if overlap:
+        raise ValueError(f"task {name}: instructions both seen and unseen: {sorted(overlap)}")
+    if not all(isinstance(s, str) and s.strip() for s in seen + unseen):
+        raise ValueError(f"task {name}: instructions must be non-empty strings")

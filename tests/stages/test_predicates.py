@@ -1,0 +1,139 @@
+"""Predicates on synthetic world states."""
+
+import math
+
+import numpy as np
+import pytest
+
+from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.stages import predicates as P
+from tests.stages.helpers import pose, quat_about, scene, state
+
+# small cube: 4 cm at (-0.1, 0); large cube: 6 cm at (0.1, 0); bowl at (0.2, -0.1); roller along x
+SMALL_ON_LARGE = pose(0.1, 0.0, TABLE_TOP + 0.06 + 0.02)
+
+
+def test_lifted_relative_to_initial_and_table():
+    s0 = state()
+    up = state(poses={"small": pose(-0.1, 0.0, TABLE_TOP + 0.02 + 0.05)})
+    assert not P.lifted("small", 0.03)(s0)
+    assert P.lifted("small", 0.03)(up)
+    assert not P.lifted("small", 0.06)(up)
+    assert P.lifted("small", 0.04, reference="table")(up)
+    with pytest.raises(ValueError):
+        P.lifted("small", reference="floor")
+
+
+def test_on_top_of_uses_sizes():
+    on = state(poses={"small": SMALL_ON_LARGE})
+    assert P.on_top_of("small", "large")(on)
+    assert not P.on_top_of("large", "small")(on)
+    assert not P.on_top_of("small", "large")(state())
+    hovering = state(poses={"small": SMALL_ON_LARGE + [0, 0, 0.03, 0, 0, 0, 0]})
+    assert not P.on_top_of("small", "large")(hovering)
+    offset = state(poses={"small": SMALL_ON_LARGE + [0.025, 0, 0, 0, 0, 0, 0]})
+    assert not P.on_top_of("small", "large", xy_tol=0.02)(offset)
+    assert P.on_top_of("small", "large", xy_tol=0.03)(offset)
+
+
+def test_on_table_and_above():
+    assert P.on_table("small")(state())
+    on = state(poses={"small": SMALL_ON_LARGE})
+    assert not P.on_table("small")(on)
+    assert P.above("small", "large", xy_tol=0.01, min_dz=0.02)(on)
+    assert not P.above("large", "small")(on)
+
+
+def test_inside_container_follows_its_tilt():
+    in_bowl = state(poses={"small": pose(0.2, -0.1, TABLE_TOP + 0.026)})
+    assert P.inside("small", "bowl")(in_bowl)
+    assert not P.inside("small", "bowl")(state())
+    assert not P.inside("small", "bowl")(state(poses={"small": pose(0.2, -0.1, TABLE_TOP + 0.2)}))
+    # bowl tipped on its side (opening towards -y): judged in the bowl's frame
+    tipped = pose(0.2, -0.1, 0.9, quat_about("x", math.pi / 2))
+    into = state(poses={"bowl": tipped, "small": tipped + [0, -0.025, 0, 0, 0, 0, 0]})
+    behind = state(poses={"bowl": tipped, "small": tipped + [0, 0.03, 0, 0, 0, 0, 0]})
+    assert P.inside("small", "bowl")(into)
+    assert not P.inside("small", "bowl")(behind)
+
+
+def test_released_needs_open_grippers_and_no_contact():
+    assert P.released("small")(state())
+    assert not P.released("small")(state(openings=(0.2, 1.0)))
+    assert not P.released("small")(state(contacts={"small": {"right"}}))
+    assert P.released("small")(state(contacts={"large": {"right"}}))
+    assert P.released("small")(state(openings=(0.5, 0.5)))
+
+
+def test_held_by_side():
+    held = state(openings=(0.0, 1.0), contacts={"small": {"left"}})
+    assert P.held_by("small", "left")(held)
+    assert P.held_by("small", "any")(held)
+    assert not P.held_by("small", "right")(held)
+    assert not P.held_by("small", "both")(held)
+    both = state(openings=(0.0, 0.1), contacts={"roller": {"left", "right"}})
+    assert P.held_by("roller", "both")(both)
+    touching_open = state(openings=(1.0, 1.0), contacts={"small": {"left"}})
+    assert not P.held_by("small", "left")(touching_open)
+    with pytest.raises(ValueError):
+        P.held_by("small", "middle")
+
+
+def test_upright_and_level():
+    assert P.upright("small")(state())
+    tilted = state(poses={"small": pose(-0.1, 0, 0.8, quat_about("x", math.radians(30)))})
+    assert not P.upright("small", max_tilt=math.radians(15))(tilted)
+    assert P.upright("small", max_tilt=math.radians(31))(tilted)
+    flipped = state(poses={"small": pose(-0.1, 0, 0.8, quat_about("x", math.pi))})
+    assert P.upright("small")(flipped)
+    # the roller lies along x: level about x, not upright
+    assert P.level("roller", axis="z")(state())
+    assert not P.upright("roller")(state())
+
+
+def test_at_rest_reads_velocities():
+    assert P.at_rest("small")(state())
+    moving = state(velocities={"small": [0.05, 0, 0, 0, 0, 0]})
+    assert not P.at_rest("small")(moving)
+    spinning = state(velocities={"small": [0, 0, 0, 0, 0, 1.0]})
+    assert not P.at_rest("small")(spinning)
+
+
+def test_at_rest_from_finite_differences():
+    s0 = state(step=0)
+    s1 = state(poses={"small": pose(-0.1 + 0.01, 0.0, TABLE_TOP + 0.02)}, step=1)
+    derived = s1.with_velocities_from(s0)
+    np.testing.assert_allclose(derived.velocity("small")[:3], [0.15, 0, 0], atol=1e-9)
+    assert not P.at_rest("small")(derived)
+    assert P.at_rest("large")(derived)
+    s2 = state(poses={"large": pose(0.1, 0, TABLE_TOP + 0.03, quat_about("z", 0.1))}, step=1)
+    np.testing.assert_allclose(s2.with_velocities_from(s0).velocity("large")[3:], [0, 0, 1.5])
+
+
+def test_within_xy_and_cells():
+    assert P.within_xy("small", (-0.1, 0.005), tol=0.01)(state())
+    assert not P.within_xy("small", (-0.1, 0.02), tol=0.01)(state())
+    cells = [(-0.1, 0.0), (0.1, 0.0), (0.0, 0.0)]
+    s = state()
+    assert P.filled_cells(s, ["small", "large"], cells) == 2
+    assert P.cells_filled(["small", "large"], cells, 2)(s)
+    assert not P.cells_filled(["small", "large"], cells, 3)(s)
+    lifted = state(poses={"small": pose(-0.1, 0.0, TABLE_TOP + 0.1)})
+    assert P.filled_cells(lifted, ["small", "large"], cells) == 1  # held above: not filled
+    assert P.filled_cells(s, [], cells) == 0
+
+
+def test_combinators_and_names():
+    s = state(poses={"small": SMALL_ON_LARGE})
+    on, rel = P.on_top_of("small", "large"), P.released("small")
+    assert (on & rel)(s) and (on | ~rel)(s) and not (~on)(s)
+    assert "on_top_of('small', 'large'" in repr(on & rel)
+    preds = [P.on_table("small"), P.on_table("large"), P.on_table("bowl")]
+    assert P.count_true(preds, 2)(s) and not P.count_true(preds, 3)(s)
+    assert P.fraction_true(preds)(s) == pytest.approx(2 / 3)
+    assert P.all_of(*preds)(state()) is True
+
+
+def test_unknown_object_is_a_clear_error():
+    with pytest.raises(KeyError, match="no object 'ghost'"):
+        P.lifted("ghost")(state(scene()))
