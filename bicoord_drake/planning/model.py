@@ -1,0 +1,487 @@
+"""The planning model of a scene: table, both arms and the scene's objects as obstacles.
+
+:class:`PlanningModel` is built once per scene (one ``RobotDiagram`` and one
+``SceneGraphCollisionChecker``) and then kept in step with the world:
+
+- ``set_object_pose(name, X_WO)`` moves an obstacle. Every object - fixed or free - is welded to
+  the world through an anchor ``FixedOffsetFrame`` whose pose is a context *parameter*, so moving
+  it changes no model and no configuration vector.
+- ``attach(name, side, q)`` makes an object part of the robot: its collision primitives ride on
+  that arm's gripper link (checked against the other arm with the inter-arm clearance, and
+  against the world with the environment clearance) and its own body is parked out of reach.
+  ``detach(side, q)`` puts it back into the world where the gripper left it.
+- ``set_gripper(side, opening)`` sets the finger opening held fixed while planning.
+- ``ignoring(names)`` is a context manager under which the named objects collide with nothing
+  (the object being grasped, or the held object a second gripper takes over).
+
+Configurations: planning uses ``q12 = [left 6 arm joints, right 6 arm joints]``; ``full_q(q12)``
+adds the fixed finger positions to give the plant's position vector.
+
+Distances for the optimisers (:mod:`.ik`, :mod:`.motion`) come from two diagram contexts whose
+collision filters split the geometry pairs in two classes: ``"arms"`` (left arm with what it
+holds vs right arm with what it holds) and ``"env"`` (each arm's self pairs and arm vs table and
+objects). Each class gets its own minimum-distance bound per call.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+import numpy as np
+from pydrake.all import (
+    Box,
+    Capsule,
+    CollisionFilterDeclaration,
+    Context,
+    Cylinder,
+    FixedOffsetFrame,
+    GeometryInstance,
+    GeometrySet,
+    Parallelism,
+    ProximityProperties,
+    RigidTransform,
+    RobotDiagramBuilder,
+    SceneGraphCollisionChecker,
+    Sphere,
+)
+
+from bicoord_drake.models.embodiment import SIDES, Embodiment, get_embodiment
+from bicoord_drake.models.geometry import Primitive
+from bicoord_drake.models.objects import SceneObject, object_sdf
+from bicoord_drake.models.scene import Scene
+from bicoord_drake.models.table import table_sdf
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.sim.station import add_robot, rigid_transform
+
+#: Where the body of a held object is parked (far below the floor, out of every query's reach).
+PARK = RigidTransform([0.0, 0.0, -50.0])
+_HELD_GROUP = "held_{side}"
+
+
+@dataclass(frozen=True)
+class HeldObject:
+    """An object rigidly held by one gripper: `X_GO` is its pose in the gripper-link frame."""
+
+    name: str
+    side: str
+    X_GO: RigidTransform
+
+
+def drake_shape(prim: Primitive):
+    """Drake shape of a collision primitive (in the primitive's own frame)."""
+    if prim.kind == "box":
+        return Box(*prim.size)
+    if prim.kind == "cylinder":
+        return Cylinder(prim.size[0], prim.size[1])
+    if prim.kind == "capsule":
+        return Capsule(prim.size[0], prim.size[1])
+    return Sphere(prim.size[0])
+
+
+def _bounding_radius(shape) -> float:
+    """Radius of a sphere about the shape's origin that contains it."""
+    if isinstance(shape, Box):
+        return 0.5 * float(np.linalg.norm([shape.width(), shape.depth(), shape.height()]))
+    if isinstance(shape, Cylinder):
+        return float(np.hypot(shape.radius(), shape.length() / 2))
+    if isinstance(shape, Capsule):
+        return shape.radius() + shape.length() / 2
+    if isinstance(shape, Sphere):
+        return shape.radius()
+    raise TypeError(f"unsupported collision shape {type(shape).__name__}")
+
+
+class PlanningModel:
+    """Kinematic + collision model of the two arms in one scene (see the module docstring)."""
+
+    def __init__(self, scene: Scene | None = None, embodiment: Embodiment | str = "aloha_viperx"):
+        self.scene = scene or Scene()
+        self.embodiment = (
+            get_embodiment(embodiment) if isinstance(embodiment, str) else embodiment
+        )
+        builder = RobotDiagramBuilder(time_step=0.0)
+        plant = builder.plant()
+        builder.parser().AddModelsFromString(table_sdf(), "sdf")
+        self.arms = add_robot(plant, self.embodiment)
+        self._anchors: dict[str, FixedOffsetFrame] = {}
+        self._object_bodies = {}
+        for obj in self.scene.objects:
+            (inst,) = builder.parser().AddModelsFromString(object_sdf(obj), "sdf")
+            body = plant.GetBodyByName(obj.name, inst)
+            anchor = plant.AddFrame(
+                FixedOffsetFrame(f"{obj.name}_anchor", plant.world_frame(), RigidTransform())
+            )
+            plant.WeldFrames(anchor, body.body_frame(), RigidTransform())
+            self._anchors[obj.name] = anchor
+            self._object_bodies[obj.name] = body
+        plant.Finalize()
+        self.diagram = builder.Build()
+        self.plant = plant
+        self.scene_graph = self.diagram.scene_graph()
+
+        arm = self.embodiment.arm
+        self.arm_indices = {
+            side: np.array(
+                [plant.GetJointByName(j, self.arms[side]).position_start() for j in arm.joint_names]
+            )
+            for side in SIDES
+        }
+        self.finger_indices = {
+            side: np.array(
+                [
+                    plant.GetJointByName(f, self.arms[side]).position_start()
+                    for f in ("left_finger_joint", "right_finger_joint")
+                ]
+            )
+            for side in SIDES
+        }
+        self.q12_indices = np.concatenate([self.arm_indices["left"], self.arm_indices["right"]])
+        self.lower = np.tile(arm.lower, 2)
+        self.upper = np.tile(arm.upper, 2)
+        self.home = np.tile(np.asarray(self.embodiment.home, dtype=float), 2)
+        self.tcp_frames = {side: plant.GetFrameByName("tcp", self.arms[side]) for side in SIDES}
+        self.gripper_bodies = {
+            side: plant.GetBodyByName(arm.gripper_link.name, self.arms[side]) for side in SIDES
+        }
+        self.robot_bodies = {
+            side: [plant.get_body(i) for i in plant.GetBodyIndices(self.arms[side])]
+            for side in SIDES
+        }
+
+        self._q_full = np.zeros(plant.num_positions())
+        self._object_poses: dict[str, RigidTransform] = {}
+        self._held: dict[str, HeldObject] = {}
+        self._ignored: frozenset[str] = frozenset()
+        self._contexts: dict[str, tuple[Context, Context]] = {}
+        self._fk_context = plant.CreateDefaultContext()
+
+        self.joint_radius = self._joint_radius_bounds()
+        self.checker = SceneGraphCollisionChecker(
+            model=self.diagram,
+            robot_model_instances=list(self.arms.values()),
+            edge_step_size=0.01,
+            env_collision_padding=0.0,
+            self_collision_padding=0.0,
+            implicit_context_parallelism=Parallelism(1),
+            configuration_distance_function=self._checker_distance,
+        )
+        for side in SIDES:
+            self.set_gripper(side, self.embodiment.home_opening)
+        for obj in self.scene.objects:
+            self.set_object_pose(obj.name, rigid_transform(obj.pose))
+
+    # ------------------------------------------------------------------ configurations
+    @property
+    def num_positions(self) -> int:
+        return self.plant.num_positions()
+
+    def full_q(self, q12: np.ndarray) -> np.ndarray:
+        """Plant positions for planning joints `q12` (fingers at the current openings)."""
+        q = self._q_full.copy()
+        q[self.q12_indices] = q12
+        return q
+
+    def q12(self, q_full: np.ndarray) -> np.ndarray:
+        return np.asarray(q_full)[self.q12_indices]
+
+    def side_slice(self, side: str) -> slice:
+        """The `q12` entries of one arm."""
+        return slice(0, 6) if side == "left" else slice(6, 12)
+
+    def set_gripper(self, side: str, opening: float) -> None:
+        """Finger opening in [0, 1] held fixed while planning for `side`."""
+        finger = float(self.embodiment.arm.gripper.finger_position(opening))
+        self._q_full[self.finger_indices[side]] = finger
+
+    def within_limits(self, q12: np.ndarray, tol: float = 1e-6) -> bool:
+        return bool(np.all(q12 >= self.lower - tol) and np.all(q12 <= self.upper + tol))
+
+    # ------------------------------------------------------------------ kinematics
+    def tcp_pose(self, q12: np.ndarray, side: str) -> RigidTransform:
+        """X_WT: the TCP of `side` in the world at `q12`."""
+        self.plant.SetPositions(self._fk_context, self.full_q(q12))
+        return self.tcp_frames[side].CalcPoseInWorld(self._fk_context)
+
+    def gripper_pose(self, q12: np.ndarray, side: str) -> RigidTransform:
+        """X_WG: the gripper link of `side` in the world at `q12`."""
+        self.plant.SetPositions(self._fk_context, self.full_q(q12))
+        return self.gripper_bodies[side].EvalPoseInWorld(self._fk_context)
+
+    # ------------------------------------------------------------------ world state
+    def object(self, name: str) -> SceneObject:
+        return self.scene.object(name)
+
+    def object_pose(self, name: str) -> RigidTransform:
+        """Current X_WO of an object in the planning world (for a held object: where it was
+        last put down or taken from; use `held_pose` while it is held)."""
+        return self._object_poses[name]
+
+    def set_object_pose(self, name: str, X_WO: RigidTransform) -> None:
+        """Move an obstacle (not allowed while it is held)."""
+        if name not in self._anchors:
+            raise KeyError(f"no object {name!r} in the planning scene")
+        if any(h.name == name for h in self._held.values()):
+            raise PlanningError("object_held", f"{name} is held; detach it before moving it")
+        self._object_poses[name] = X_WO
+        self._set_anchor(name, X_WO)
+
+    def _set_anchor(self, name: str, X_WO: RigidTransform) -> None:
+        anchor = self._anchors[name]
+        self.checker.PerformOperationAgainstAllModelContexts(
+            lambda _model, ctx: anchor.SetPoseInParentFrame(ctx.plant_context(), X_WO)
+        )
+        self._contexts.clear()
+
+    @property
+    def held(self) -> dict[str, HeldObject]:
+        """What each gripper holds, by side."""
+        return dict(self._held)
+
+    def held_pose(self, side: str, q12: np.ndarray) -> RigidTransform:
+        """X_WO of the object held by `side` at `q12`."""
+        return self.gripper_pose(q12, side) @ self._held[side].X_GO
+
+    def attach(self, name: str, side: str, q12: np.ndarray, X_WO: RigidTransform | None = None):
+        """`side` grasps `name` at configuration `q12` (object at `X_WO`, default: its current
+        pose); from now on it moves with that gripper and is checked as part of the robot."""
+        if side in self._held:
+            raise PlanningError("gripper_busy", f"{side} gripper already holds {self._held[side]}")
+        if any(h.name == name for h in self._held.values()):
+            raise PlanningError("object_held", f"{name} is already held")
+        X_WO = self._object_poses[name] if X_WO is None else X_WO
+        X_GO = self.gripper_pose(q12, side).inverse() @ X_WO
+        self._held[side] = HeldObject(name, side, X_GO)
+        self._object_poses[name] = X_WO
+        self._set_anchor(name, PARK)
+        self._sync_checker_held(side)
+
+    def detach(self, side: str, q12: np.ndarray | None = None, X_WO: RigidTransform | None = None):
+        """Release what `side` holds; it stays where the gripper is at `q12` (or at `X_WO`)."""
+        held = self._held.pop(side, None)
+        if held is None:
+            raise PlanningError("gripper_empty", f"{side} gripper holds nothing")
+        if X_WO is None:
+            if q12 is None:
+                raise ValueError("detach needs the configuration q12 or the release pose X_WO")
+            X_WO = self.gripper_pose(q12, side) @ held.X_GO
+        self._sync_checker_held(side)
+        self.set_object_pose(held.name, X_WO)
+
+    def _held_shapes(self, held: HeldObject) -> list[tuple[object, RigidTransform]]:
+        obj = self.scene.object(held.name)
+        if not obj.collide:
+            return []
+        return [
+            (drake_shape(p), held.X_GO @ rigid_transform(p.pose)) for p in obj.shape.primitives()
+        ]
+
+    def _sync_checker_held(self, side: str) -> None:
+        group = _HELD_GROUP.format(side=side)
+        self.checker.RemoveAllAddedCollisionShapes(group)
+        held = self._held.get(side)
+        if held is not None and held.name not in self._ignored:
+            for shape, X_GP in self._held_shapes(held):
+                self.checker.AddCollisionShapeToBody(group, self.gripper_bodies[side], shape, X_GP)
+        self._update_radius()
+        self._contexts.clear()
+
+    # ------------------------------------------------------------------ ignoring objects
+    @contextmanager
+    def ignoring(self, names: Iterable[str]) -> Iterator[None]:
+        """Within the block the named objects (free, fixed or held) collide with nothing."""
+        names = frozenset(names)
+        unknown = names - set(self._anchors)
+        if unknown:
+            raise KeyError(f"unknown objects {sorted(unknown)}")
+        previous = self._ignored
+        if names <= previous:
+            yield
+            return
+        self._set_ignored(previous | names)
+        try:
+            yield
+        finally:
+            self._set_ignored(previous)
+
+    def _set_ignored(self, names: frozenset[str]) -> None:
+        self._ignored = names
+        robot = [b for side in SIDES for b in self.robot_bodies[side]]
+        for name, body in self._object_bodies.items():
+            for rb in robot:
+                self.checker.SetCollisionFilteredBetween(body, rb, name in names)
+        for side in self._held:
+            self._sync_checker_held(side)
+        self._contexts.clear()
+
+    # ------------------------------------------------------------------ distance contexts
+    def distance_context(self, kind: str) -> Context:
+        """Plant context (inside its own diagram context) whose collision filters leave only
+        the pairs of class `kind`: ``"arms"`` or ``"env"`` (see the module docstring)."""
+        if kind not in self._contexts:
+            self._contexts[kind] = self._make_context(kind)
+        return self._contexts[kind][1]
+
+    def _make_context(self, kind: str) -> tuple[Context, Context]:
+        root = self.diagram.CreateDefaultContext()
+        plant_ctx = self.plant.GetMyMutableContextFromRoot(root)
+        sg_ctx = self.scene_graph.GetMyMutableContextFromRoot(root)
+        for name, anchor in self._anchors.items():
+            held = any(h.name == name for h in self._held.values())
+            anchor.SetPoseInParentFrame(plant_ctx, PARK if held else self._object_poses[name])
+        geoms = {
+            side: [g for b in self.robot_bodies[side] for g in self.plant.GetCollisionGeometriesForBody(b)]
+            for side in SIDES
+        }
+        ignored = [
+            g
+            for name in self._ignored
+            for g in self.plant.GetCollisionGeometriesForBody(self._object_bodies[name])
+        ]
+        held_geoms: dict[str, list] = {side: [] for side in SIDES}
+        source = self.plant.get_source_id()
+        for side, held in self._held.items():
+            if held.name in self._ignored:
+                continue
+            frame = self.plant.GetBodyFrameIdOrThrow(self.gripper_bodies[side].index())
+            for i, (shape, X_GP) in enumerate(self._held_shapes(held)):
+                gid = self.scene_graph.RegisterGeometry(
+                    sg_ctx, source, frame, GeometryInstance(X_GP, shape, f"held_{side}_{i}")
+                )
+                self.scene_graph.AssignRole(sg_ctx, source, gid, ProximityProperties())
+                held_geoms[side].append(gid)
+        inspector = self.scene_graph.model_inspector()
+        robot_all = set(geoms["left"] + geoms["right"])
+        env = [g for g in inspector.GetAllGeometryIds() if g not in robot_all]
+        left = GeometrySet(geoms["left"] + held_geoms["left"])
+        right = GeometrySet(geoms["right"] + held_geoms["right"])
+        decl = CollisionFilterDeclaration()
+        if kind == "arms":
+            decl.ExcludeWithin(left).ExcludeWithin(right)
+            decl.ExcludeBetween(GeometrySet(env), GeometrySet(env + list(robot_all)))
+            for side in SIDES:
+                decl.ExcludeBetween(GeometrySet(held_geoms[side]), GeometrySet(env))
+        elif kind == "env":
+            decl.ExcludeBetween(left, right).ExcludeWithin(GeometrySet(env))
+            for side in SIDES:
+                # The held object touches its own gripper and fingers.
+                grip = [
+                    g
+                    for b in self.robot_bodies[side]
+                    if b.name() in self._gripper_cluster
+                    for g in self.plant.GetCollisionGeometriesForBody(b)
+                ]
+                decl.ExcludeBetween(GeometrySet(held_geoms[side]), GeometrySet(grip))
+                decl.ExcludeWithin(GeometrySet(held_geoms[side]))
+        else:
+            raise ValueError(f"unknown distance context {kind!r}; use 'arms' or 'env'")
+        if ignored:
+            decl.ExcludeBetween(GeometrySet(ignored), GeometrySet(env + list(robot_all)))
+        self.scene_graph.collision_filter_manager(sg_ctx).Apply(decl)
+        return root, plant_ctx
+
+    @property
+    def _gripper_cluster(self) -> set[str]:
+        arm = self.embodiment.arm
+        return {arm.gripper_link.name, arm.joints[-2].child, "left_finger", "right_finger"}
+
+    # ------------------------------------------------------------------ collision checking
+    def set_padding(self, clearance: float, env_clearance: float) -> None:
+        """Checker padding: `clearance` between the two arms (and what they hold),
+        `env_clearance` for each arm's self pairs and against the environment."""
+        n = self.plant.num_bodies()
+        side_of = np.full(n, -1)
+        for k, side in enumerate(SIDES):
+            for b in self.robot_bodies[side]:
+                side_of[int(b.index())] = k
+        robot = side_of >= 0
+        pad = np.zeros((n, n))
+        pad[np.ix_(robot, np.ones(n, bool))] = env_clearance
+        pad[np.ix_(np.ones(n, bool), robot)] = env_clearance
+        cross = (side_of[:, None] >= 0) & (side_of[None, :] >= 0) & (side_of[:, None] != side_of)
+        pad[cross] = clearance
+        np.fill_diagonal(pad, 0.0)
+        self.checker.SetPaddingMatrix(pad)
+
+    def collision_free(self, q12: np.ndarray) -> bool:
+        """Whether `q12` is collision-free under the current padding (held objects included)."""
+        return bool(self.checker.CheckConfigCollisionFree(self.full_q(q12)))
+
+    def colliding_pairs(self, q12: np.ndarray, margin: float = 0.0) -> list[tuple[str, str, float]]:
+        """Body pairs closer than their padding + `margin` at `q12`: (body, other, distance)."""
+        clearance = self.checker.CalcRobotClearance(self.full_q(q12), 0.1 + margin)
+        out = []
+        for r, o, d in zip(
+            clearance.robot_indices(), clearance.other_indices(), clearance.distances(), strict=True
+        ):
+            if d < margin:
+                out.append((self._body_label(r), self._body_label(o), float(d)))
+        return sorted(set(out), key=lambda x: x[2])
+
+    def _body_label(self, index) -> str:
+        body = self.plant.get_body(index)
+        inst = self.plant.GetModelInstanceName(body.model_instance())
+        return f"{inst}/{body.name()}" if inst.endswith("_arm") else body.name()
+
+    # ------------------------------------------------------------------ path resolution
+    def path_distance(self, q12_a: np.ndarray, q12_b: np.ndarray) -> float:
+        """An upper bound (m) on how far any robot point (held objects included) moves along
+        the straight joint-space segment from `q12_a` to `q12_b`."""
+        return float(np.abs(np.asarray(q12_b) - np.asarray(q12_a)) @ self.joint_radius)
+
+    def _checker_distance(self, q1: np.ndarray, q2: np.ndarray) -> float:
+        return float(np.abs(q2 - q1)[self.q12_indices] @ self.joint_radius)
+
+    def _joint_radius_bounds(self) -> np.ndarray:
+        """Per joint, a bound on the distance from its axis of any collision geometry it moves.
+
+        Triangle inequality along the chain: joint-origin offsets of the joints after it, plus
+        the farthest bounding sphere of the geometry of the link it moves and its descendants.
+        """
+        arm = self.embodiment.arm
+        inspector = self.scene_graph.model_inspector()
+        reach = {}
+        for body in self.robot_bodies["left"]:
+            r = 0.0
+            for g in self.plant.GetCollisionGeometriesForBody(body):
+                X_BG = inspector.GetPoseInFrame(g)
+                r = max(r, np.linalg.norm(X_BG.translation()) + _bounding_radius(inspector.GetShape(g)))
+            reach[body.name()] = r
+        child_links = [j.child for j in arm.joints]
+        # Geometry of the gripper link includes the fingers (they ride on it).
+        g_link = arm.gripper_link.name
+        finger_origin = arm.gripper.finger_origin_x + arm.gripper.finger_max
+        reach[g_link] = max(
+            reach[g_link],
+            finger_origin + max(reach["left_finger"], reach["right_finger"]),
+        )
+        self._gripper_reach = reach[g_link]
+        offsets = [float(np.linalg.norm(j.origin.xyz)) for j in arm.joints]
+        radius = np.zeros(len(arm.joints))
+        for i in range(len(arm.joints)):
+            best, chain = 0.0, 0.0
+            for k in range(i, len(arm.joints)):
+                if k > i:
+                    chain += offsets[k]
+                best = max(best, chain + reach[child_links[k]])
+            radius[i] = best
+        self._base_radius = radius.copy()
+        self._offsets = offsets
+        return np.tile(radius, 2)
+
+    def _update_radius(self) -> None:
+        """Grow the joint radii of an arm that holds an object by that object's extent."""
+        radius = np.tile(self._base_radius, 2)
+        arm = self.embodiment.arm
+        n = len(arm.joints)
+        for side, held in self._held.items():
+            ext = max(
+                (np.linalg.norm(X.translation()) + _bounding_radius(s) for s, X in self._held_shapes(held)),
+                default=0.0,
+            )
+            for i in range(n):
+                chain = sum(self._offsets[i + 1 :])
+                k = i + (0 if side == "left" else n)
+                radius[k] = max(radius[k], chain + ext)
+        self.joint_radius = radius

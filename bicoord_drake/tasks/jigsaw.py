@@ -1,0 +1,206 @@
+"""jigsaw: fill the empty cells of a 3x3 grid with spare cubes, both arms working on one grid."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+
+from bicoord_drake.models.geometry import Pose
+from bicoord_drake.models.objects import BoxShape, SceneObject
+from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
+from bicoord_drake.planning.model import PlanningModel
+from bicoord_drake.planning.skills import Motion, Skills
+from bicoord_drake.stages import Stage
+from bicoord_drake.stages.predicates import all_of, cells_filled, count_true, lifted, released
+from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.registry import register_task
+
+CUBE = 0.04
+CELLS = tuple((x, y) for y in (0.0, -0.1, -0.2) for x in (-0.1, 0.0, 0.1))
+SPARES = {"left": ((-0.2, -0.2), (-0.2, 0.0)), "right": ((0.2, -0.2), (0.2, 0.0))}
+COLORS = {
+    "red": (0.85, 0.2, 0.2, 1.0),
+    "green": (0.2, 0.6, 0.25, 1.0),
+    "blue": (0.2, 0.35, 0.85, 1.0),
+    "yellow": (0.9, 0.75, 0.15, 1.0),
+    "purple": (0.6, 0.3, 0.75, 1.0),
+    "orange": (0.95, 0.5, 0.1, 1.0),
+}
+SETTLE_STEPS = 8
+
+
+@register_task
+class Jigsaw(Task):
+    """Fill the empty cells of a 3x3 grid with the spare cubes.
+
+    Description: a 3x3 grid of 4 cm white squares at 10 cm pitch (x in {-0.1, 0, 0.1},
+    y in {0, -0.1, -0.2}); five same-colour 4 cm cubes stand on random cells; four spare cubes
+    wait at (+-0.2, -0.2) and (+-0.2, 0). Each arm takes the spares on its side and fills the
+    empty cells nearest to it; both arms work over the same small grid, taking turns placing.
+
+    Randomization: which five cells are filled; the cube colour.
+
+    Stages: (1) both pick a spare; (2) left fills a cell while right holds; (3) right fills while
+    left picks the next spare; (4) left fills while right picks; (5) right fills, left retreats.
+
+    Success: all nine cells hold a cube (centre within 1 cm, resting on the table), released.
+    """
+
+    name = "jigsaw"
+    step_limit = 800
+    instructions_seen = (
+        "Fill the empty cells of the grid with the spare cubes.",
+        "Use the spare blocks to complete the three-by-three grid.",
+        "Put a spare cube on every empty square of the grid.",
+        "Complete the grid by placing the loose cubes in the gaps.",
+        "Fill every gap in the square grid with the extra cubes.",
+        "Take the spare cubes and fill in the missing cells of the grid.",
+        "Place the extra blocks so that all nine squares are covered.",
+    )
+    instructions_unseen = (
+        "Cover the remaining white squares with the cubes at the sides.",
+        "Both hands: move the side cubes into the empty grid cells.",
+        "Finish the jigsaw by filling the empty spots with the spare blocks.",
+        "Make the grid full using the four cubes waiting at the edges.",
+    )
+
+    # ---------------------------------------------------------------- scene
+    def sample_scene(self, seed: int) -> Scene:
+        rng = np.random.default_rng(seed)
+        filled = sorted(int(i) for i in rng.choice(len(CELLS), size=5, replace=False))
+        color_name = str(rng.choice(sorted(COLORS)))
+        color = COLORS[color_name]
+        objects = [_marker(f"cell_{i}", xy) for i, xy in enumerate(CELLS)]
+        objects += [cube(f"cube_{i}", *CELLS[i], size=CUBE, color=color) for i in filled]
+        for side, spots in SPARES.items():
+            objects += [
+                cube(f"spare_{side}_{k}", *xy, size=CUBE, color=color) for k, xy in enumerate(spots)
+            ]
+        return Scene(
+            name=self.name,
+            seed=seed,
+            objects=tuple(objects),
+            draws={"filled_cells": filled, "color": color_name},
+        )
+
+    def object_count(self, scene: Scene) -> int:
+        return len(scene.free_objects) + 1  # the cubes, and the grid they fill
+
+    @staticmethod
+    def _cubes(scene: Scene) -> list[str]:
+        return [o.name for o in scene.free_objects]
+
+    @staticmethod
+    def _spares(scene: Scene) -> list[str]:
+        return [o.name for o in scene.free_objects if o.name.startswith("spare_")]
+
+    # ---------------------------------------------------------------- stages
+    def stages(self, scene: Scene) -> list[Stage]:
+        cubes, spares = self._cubes(scene), self._spares(scene)
+
+        def filled(k):
+            return cells_filled(cubes, CELLS, k, tol=0.01)
+
+        return [
+            Stage(
+                "both pick a spare",
+                "pick a spare cube",
+                "pick a spare cube",
+                0.0,
+                count_true([lifted(s, 0.05) for s in spares], 2),
+                "transient",
+            ),
+            Stage(
+                "first fill",
+                "place its cube in an empty cell",
+                "hold, stay clear",
+                0.25,
+                filled(6),
+                "persistent",
+            ),
+            Stage(
+                "second fill",
+                "pick the next spare",
+                "place its cube in an empty cell",
+                0.25,
+                filled(7),
+                "persistent",
+            ),
+            Stage(
+                "third fill",
+                "place its cube in an empty cell",
+                "pick the next spare",
+                0.25,
+                filled(8),
+                "persistent",
+            ),
+            Stage(
+                "last fill",
+                "retreat",
+                "place its cube in the last cell",
+                0.25,
+                all_of(filled(9), *[released(c) for c in spares]),
+                "persistent",
+            ),
+        ]
+
+    # ---------------------------------------------------------------- expert
+    def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
+        empty = [CELLS[i] for i in range(len(CELLS)) if i not in scene.draws["filled_cells"]]
+        empty.sort(key=lambda xy: (xy[0], -xy[1]))  # left to right, far to near
+        targets = {"left": empty[:2], "right": empty[2:][::-1]}
+        skills = Skills(PlanningModel(scene))
+
+        def run(motion: Motion) -> Iterator[np.ndarray]:
+            yield from motion.actions()
+            poses = view.object_transforms()
+            skills.sync(skills.q, object_poses=poses)
+            _refresh_grasps(skills, poses)
+
+        def goal(xy):
+            from pydrake.all import RigidTransform
+
+            return RigidTransform([xy[0], xy[1], TABLE_TOP + CUBE / 2])
+
+        # Within a stage, the arm leaving the grid is planned first, so the arm coming in
+        # plans around where the other will be; merge() then staggers them if they would meet.
+        # ---- stage 1: both pick a spare (the one nearer the grid first)
+        left = skills.pick("left", "spare_left_1")
+        right = skills.pick("right", "spare_right_1")
+        yield from run(skills.merge(left, right))
+        # ---- stage 2: left fills its first cell, right holds its cube clear of the grid
+        yield from run(skills.merge(skills.place("left", goal(targets["left"][0])), None))
+        # ---- stage 3: right fills, left picks its second spare
+        left = skills.pick("left", "spare_left_0")
+        right = skills.place("right", goal(targets["right"][0]))
+        yield from run(skills.merge(left, right))
+        # ---- stage 4: left fills, right picks its second spare
+        right = skills.pick("right", "spare_right_0")
+        left = skills.place("left", goal(targets["left"][1]))
+        yield from run(skills.merge(left, right))
+        # ---- stage 5: right fills the last cell, left retreats
+        left = skills.retreat("left")
+        right = skills.place("right", goal(targets["right"][1]))
+        yield from run(skills.merge(left, right))
+        final = skills.merge(skills.hold("left", SETTLE_STEPS), skills.hold("right", SETTLE_STEPS))
+        yield from final.actions()
+
+
+def _refresh_grasps(skills: Skills, poses: dict) -> None:
+    """Re-measure each held cube's pose in its gripper (grasps settle by a few mm)."""
+    for side, held in list(skills.model.held.items()):
+        skills.model.detach(side, X_WO=poses[held.name])
+        skills.model.attach(held.name, side, skills.q, X_WO=poses[held.name])
+
+
+def _marker(name: str, xy: tuple[float, float]) -> SceneObject:
+    """A flat white square on the table: seen, never collided with."""
+    return SceneObject(
+        name=name,
+        shape=BoxShape(size=(CUBE, CUBE, 0.001)),
+        color=(0.97, 0.97, 0.97, 1.0),
+        fixed=True,
+        collide=False,
+        pose=Pose(xyz=(xy[0], xy[1], TABLE_TOP + 0.0005)),
+    )
