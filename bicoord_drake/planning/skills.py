@@ -66,6 +66,18 @@ class ArmPlan:
         labels = "+".join(p.label for p in (self, *others) if p.label)
         return ArmPlan(self.side, np.concatenate(q), np.concatenate(opening), events, labels)
 
+    def stretched(self, num_steps: int) -> ArmPlan:
+        """The same motion slowed uniformly to `num_steps` samples (velocities and
+        accelerations only shrink); events keep their place along the motion."""
+        if num_steps <= self.num_steps:
+            return self
+        t = np.linspace(0.0, self.num_steps - 1, num_steps)
+        old = np.arange(self.num_steps)
+        q = np.column_stack([np.interp(t, old, self.q[:, j]) for j in range(self.q.shape[1])])
+        scale = (num_steps - 1) / (self.num_steps - 1)
+        events = [(int(np.ceil(i * scale)), k, n) for i, k, n in self.events]
+        return ArmPlan(self.side, q, np.interp(t, old, self.opening), events, self.label)
+
     def padded(self, num_steps: int) -> ArmPlan:
         """Hold the last sample until the plan has `num_steps` samples."""
         extra = num_steps - self.num_steps
@@ -375,14 +387,29 @@ class Skills:
         return self.move(side, q6, label="retreat")
 
     # ------------------------------------------------------------------ two arms
-    def merge(self, left: ArmPlan | None, right: ArmPlan | None, *, max_delay: int = 90) -> Motion:
-        """Run both plans at once; if the arms would come closer than the checker allows, delay
-        the later-starting one (first the right, then the left) until they do not."""
+    def merge(
+        self,
+        left: ArmPlan | None,
+        right: ArmPlan | None,
+        *,
+        max_delay: int = 90,
+        stretch: bool = True,
+    ) -> Motion:
+        """Run both plans at once. With `stretch`, the shorter plan is first slowed to last as
+        long as the longer one, so both arms keep acting together; if the arms would then come
+        closer than the checker allows, the plans run at their own pace and the later-starting
+        one is delayed (first the right, then the left) until they do not."""
         plans = {"left": left, "right": right}
         for side in SIDES:
             if plans[side] is None:
                 plans[side] = self.hold(side, 0)
         starts = {s: plans[s].q[0] for s in SIDES}
+        n = max(p.num_steps for p in plans.values())
+        moving = {s: bool(np.any(plans[s].q != plans[s].q[0])) for s in SIDES}
+        if stretch and all(moving.values()):
+            motion = _combine(plans["left"].stretched(n), plans["right"].stretched(n))
+            if self._motion_free(motion, starts):
+                return motion
         attempts = [("right", 0)] + [
             (s, d) for d in range(3, max_delay + 1, 3) for s in ("right", "left")
         ]

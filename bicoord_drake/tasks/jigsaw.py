@@ -27,7 +27,7 @@ COLORS = {
     "purple": (0.6, 0.3, 0.75, 1.0),
     "orange": (0.95, 0.5, 0.1, 1.0),
 }
-SETTLE_STEPS = 8
+SETTLE_STEPS = 3
 
 
 @register_task

@@ -1,0 +1,1 @@
+"""Runners: demonstration generation and policy evaluation."""

@@ -1,0 +1,261 @@
+"""Seeds -> verified expert demonstrations on disk.
+
+``generate(GenerateConfig(task="jigsaw", episodes=3))`` tries seeds from ``seed`` upward until
+``episodes`` demonstrations succeed. For each seed it samples the task's scene, builds the
+station, runs the expert *in physics* through the station's action path with the stage monitor
+watching every control step, and keeps the episode only if every stage verified. Failures (a
+planning error, a stage that did not verify, the step limit) are recorded with their reason in
+``manifest.json``, which is rewritten after every seed: an interrupted run resumes where it
+stopped, and no partial episode file ever appears (files are written to a temporary name and
+renamed).
+"""
+
+from __future__ import annotations
+
+import re
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+from bicoord_drake.config import CameraConfig, StationConfig, parse_resolution
+from bicoord_drake.data.episode import (
+    EpisodeEntry,
+    EpisodeLayout,
+    EpisodeMeta,
+    EpisodeRecorder,
+    Manifest,
+    read_manifest,
+    save_episode,
+    write_manifest,
+)
+from bicoord_drake.models.scene import Scene
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.sim.simulation import Simulation
+from bicoord_drake.sim.station import build_station
+from bicoord_drake.stages import StageMonitor, WorldState
+from bicoord_drake.tasks import get_task
+from bicoord_drake.tasks.base import Task, WorldView
+
+
+class GenerateConfig(BaseModel):
+    """Settings of one generation run (every field is a CLI flag of scripts/generate.py)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    task: str
+    episodes: int = Field(10, ge=1, description="successful episodes to produce")
+    seed: int = Field(0, ge=0, description="first seed to try")
+    out: str = "data"
+    resolution: str = "320x240"
+    fps: float = Field(15.0, gt=0, le=100, description="control and recording rate, Hz")
+    depth: bool = False
+    render: bool = True
+    config_name: str = Field("default", pattern=r"^[A-Za-z0-9_.-]+$")
+    max_tries: int = Field(0, ge=0, description="give up after this many seeds (0: 5x episodes)")
+    video: bool = True
+
+    @field_validator("resolution")
+    @classmethod
+    def _resolution(cls, value: str) -> str:
+        parse_resolution(value)
+        return value
+
+    def station_config(self) -> StationConfig:
+        width, height = parse_resolution(self.resolution)
+        cameras = CameraConfig(width=width, height=height, depth=self.depth)
+        return StationConfig(control_rate=self.fps, render=self.render, cameras=cameras)
+
+    def data_settings(self) -> dict:
+        """The settings that shape the data: a resumed run must match them."""
+        return self.model_dump(include={"task", "resolution", "fps", "depth", "render"})
+
+
+@dataclass
+class EpisodeResult:
+    """What one seed produced: a recorder and annotations on success, a reason otherwise."""
+
+    seed: int
+    success: bool
+    reason: str | None = None
+    recorder: EpisodeRecorder | None = None
+    rows: list = field(default_factory=list)
+    instruction: str = ""
+    scene: Scene | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+def run_expert(
+    task: Task, seed: int, station_config: StationConfig, depth: bool = False
+) -> EpisodeResult:
+    """Run `task`'s expert for `seed` in physics and verify every stage."""
+    t0 = time.perf_counter()
+    scene = task.sample_scene(seed)
+    sim = Simulation(build_station(scene, station_config))
+    monitor = StageMonitor(task.stages(scene))
+    recorder = EpisodeRecorder(
+        fps=station_config.control_rate, initial_action=sim.station.embodiment.home_action()
+    )
+    instruction = task.instruction(np.random.default_rng(seed), "seen")
+    t_build = time.perf_counter()
+    action = sim.station.embodiment.home_action()
+    try:
+        for action in task.expert(scene, WorldView(sim)):
+            if len(recorder) >= task.step_limit:
+                return EpisodeResult(
+                    seed,
+                    False,
+                    f"step_limit: expert exceeded {task.step_limit} steps",
+                    timings=_since(t0, t_build),
+                )
+            recorder.capture(sim, action, depth=depth)
+            sim.step(action)
+            monitor.update(WorldState.capture(sim, action, scene))
+    except PlanningError as err:
+        return EpisodeResult(seed, False, f"planning: {err}", timings=_since(t0, t_build))
+    monitor.finish(WorldState.capture(sim, action, scene))
+    timings = _since(t0, t_build)
+    if not monitor.success:
+        failed = [
+            s.subgoal for s, ok in zip(monitor.stages, monitor.completed(), strict=True) if not ok
+        ]
+        return EpisodeResult(
+            seed, False, f"stage_not_verified: {', '.join(failed)}", timings=timings
+        )
+    return EpisodeResult(
+        seed,
+        True,
+        recorder=recorder,
+        rows=monitor.annotations(),
+        instruction=instruction,
+        scene=scene,
+        timings=timings,
+    )
+
+
+def _since(t0: float, t_build: float) -> dict[str, float]:
+    now = time.perf_counter()
+    return {"build": round(t_build - t0, 3), "expert": round(now - t_build, 3)}
+
+
+@dataclass
+class GenerateSummary:
+    """The outcome of a run (also what the CLI prints)."""
+
+    root: Path
+    kept: int
+    tried: int
+    failures: list[EpisodeEntry]
+    mean_length: float | None
+    seconds_per_episode: float | None
+    metrics_table: str | None
+
+
+def generate(
+    config: GenerateConfig, progress: Callable[[int, int, int, str], None] | None = None
+) -> GenerateSummary:
+    """Produce `config.episodes` verified episodes (resuming a previous run in the same
+    directory). `progress(kept, tried, target, message)` is called after every seed."""
+    task = get_task(config.task)
+    layout = EpisodeLayout(Path(config.out), task.name, config.config_name)
+    layout.make_dirs()
+    manifest = _open_manifest(layout, config)
+    station_config = config.station_config()
+    max_tries = config.max_tries or 5 * config.episodes
+    tried_seeds = {e.seed for e in manifest.episodes}
+    seed = max(tried_seeds) + 1 if tried_seeds else config.seed
+    started = time.perf_counter()
+    while _kept(manifest, layout) < config.episodes:
+        if len(manifest.episodes) >= max_tries:
+            break
+        result = run_expert(task, seed, station_config, depth=config.depth)
+        entry = EpisodeEntry(
+            seed=seed, success=result.success, reason=result.reason, timings=result.timings
+        )
+        if result.success:
+            index = _kept(manifest, layout)
+            t_write = time.perf_counter()
+            meta = EpisodeMeta(
+                task=task.name,
+                seed=seed,
+                instruction=result.instruction,
+                embodiment=station_config.embodiment,
+                success=True,
+                object_count=task.object_count(result.scene),
+                config=config.model_dump(),
+                scene=result.scene,
+            )
+            save_episode(
+                layout,
+                index,
+                result.recorder,
+                result.rows,
+                meta,
+                instructions_seen=task.instructions("seen"),
+                instructions_unseen=task.instructions("unseen"),
+                video=config.video and config.render,
+            )
+            entry.index, entry.frames = index, len(result.recorder)
+            entry.timings["write"] = round(time.perf_counter() - t_write, 3)
+        manifest.episodes.append(entry)
+        manifest.timings["total"] = round(
+            manifest.timings.get("total", 0.0) + sum(entry.timings.values()), 3
+        )
+        write_manifest(layout.root, manifest)
+        if progress:
+            message = f"seed {seed}: " + ("kept" if result.success else result.reason or "")
+            progress(_kept(manifest, layout), len(manifest.episodes), config.episodes, message)
+        seed += 1
+    return _summary(layout, manifest, time.perf_counter() - started)
+
+
+def _open_manifest(layout: EpisodeLayout, config: GenerateConfig) -> Manifest:
+    if not layout.manifest.exists():
+        return Manifest(
+            task=config.task, config_name=config.config_name, config=config.data_settings()
+        )
+    manifest = read_manifest(layout.root)
+    if manifest.config != config.data_settings():
+        raise ValueError(
+            f"{layout.root} holds data generated with different settings {manifest.config}; "
+            "use another --out or --config-name to generate with these settings"
+        )
+    # An episode whose file is missing (e.g. deleted) is forgotten so its seed can be redone.
+    manifest.episodes = [
+        e for e in manifest.episodes if not e.success or layout.episode(e.index).exists()
+    ]
+    return manifest
+
+
+def _kept(manifest: Manifest, layout: EpisodeLayout) -> int:
+    return sum(1 for e in manifest.episodes if e.success)
+
+
+def _summary(layout: EpisodeLayout, manifest: Manifest, elapsed: float) -> GenerateSummary:
+    kept = [e for e in manifest.episodes if e.success]
+    table = None
+    if kept:
+        from bicoord_drake.metrics.report import format_table, measure_paths
+
+        metrics, _, _ = measure_paths([layout.root / "data"], "bicoord_drake")
+        table = format_table(metrics) if metrics else None
+    seconds = manifest.timings.get("total")
+    return GenerateSummary(
+        root=layout.root,
+        kept=len(kept),
+        tried=len(manifest.episodes),
+        failures=[e for e in manifest.episodes if not e.success],
+        mean_length=float(np.mean([e.frames for e in kept])) if kept else None,
+        seconds_per_episode=seconds / len(kept) if kept and seconds else None,
+        metrics_table=table,
+    )
+
+
+def format_failure(exc: BaseException) -> str:
+    """One line for an unexpected error (the CLI shows it; the traceback goes to the log)."""
+    text = "".join(traceback.format_exception_only(type(exc), exc)).strip()
+    return re.sub(r"\s+", " ", text)
