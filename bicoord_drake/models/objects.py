@@ -121,7 +121,28 @@ class BowlShape(_Shape):
         return trimesh.creation.revolve(profile, sections=48)
 
 
-Shape = Annotated[BoxShape | CylinderShape | SphereShape | BowlShape, Field(discriminator="kind")]
+class CompoundShape(_Shape):
+    """A rigid union of primitives in the object frame (a skillet = bowl slabs + a handle bar,
+    a microphone = a handle cylinder + a ball head, ...). Collision uses exactly these parts."""
+
+    kind: Literal["compound"] = "compound"
+    parts: tuple[Primitive, ...] = Field(min_length=1)
+
+    def primitives(self) -> list[Primitive]:
+        return list(self.parts)
+
+    def visual_mesh(self) -> trimesh.Trimesh:
+        return trimesh.util.concatenate(
+            [
+                p.trimesh(smooth=0.1 * min(p.size)) if p.kind == "box" else p.trimesh()
+                for p in self.parts
+            ]
+        )
+
+
+Shape = Annotated[
+    BoxShape | CylinderShape | SphereShape | BowlShape | CompoundShape, Field(discriminator="kind")
+]
 
 
 class SceneObject(BaseModel):
