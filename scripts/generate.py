@@ -47,9 +47,15 @@ def main(argv: list[str] | None = None) -> int:
         default=0,
         help="stop after this many seeds (default: 5 x episodes)",
     )
+    parser.add_argument("--verbose", action="store_true", help="show Drake's solver log")
     args = parser.parse_args(argv)
 
+    import logging
+
     from pydantic import ValidationError
+
+    # Drake logs solver fallbacks and checker setup at INFO/WARNING; the manifest has what matters.
+    logging.getLogger("drake").setLevel(logging.DEBUG if args.verbose else logging.ERROR)
 
     from bicoord_drake.runner.generate import GenerateConfig, format_failure, generate
     from bicoord_drake.tasks import list_tasks
