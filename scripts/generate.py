@@ -47,6 +47,12 @@ def main(argv: list[str] | None = None) -> int:
         default=0,
         help="stop after this many seeds (default: 5 x episodes)",
     )
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="seeds run in parallel processes (default 1; try the core count)",
+    )
     parser.add_argument("--verbose", action="store_true", help="show Drake's solver log")
     args = parser.parse_args(argv)
 
@@ -77,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
             render=not args.no_render,
             config_name=args.config_name,
             max_tries=args.max_tries,
+            workers=args.workers,
         )
     except ValidationError as err:
         e = err.errors()[0]

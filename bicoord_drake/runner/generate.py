@@ -12,11 +12,14 @@ renamed).
 
 from __future__ import annotations
 
+import os
 import re
 import time
 import traceback
 from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
+from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
@@ -58,6 +61,7 @@ class GenerateConfig(BaseModel):
     config_name: str = Field("default", pattern=r"^[A-Za-z0-9_.-]+$")
     max_tries: int = Field(0, ge=0, description="give up after this many seeds (0: 5x episodes)")
     video: bool = True
+    workers: int = Field(1, ge=1, le=64, description="seeds run in parallel processes")
 
     @field_validator("resolution")
     @classmethod
@@ -159,7 +163,10 @@ def generate(
     config: GenerateConfig, progress: Callable[[int, int, int, str], None] | None = None
 ) -> GenerateSummary:
     """Produce `config.episodes` verified episodes (resuming a previous run in the same
-    directory). `progress(kept, tried, target, message)` is called after every seed."""
+    directory). `progress(kept, tried, target, message)` is called after every seed.
+
+    With ``config.workers > 1`` seeds run in a pool of processes; this process alone assigns
+    episode indices (in the order episodes finish), writes files and the manifest."""
     task = get_task(config.task)
     layout = EpisodeLayout(Path(config.out), task.name, config.config_name)
     layout.make_dirs()
@@ -167,50 +174,118 @@ def generate(
     station_config = config.station_config()
     max_tries = config.max_tries or 5 * config.episodes
     tried_seeds = {e.seed for e in manifest.episodes}
-    seed = max(tried_seeds) + 1 if tried_seeds else config.seed
+    next_seed = max(tried_seeds) + 1 if tried_seeds else config.seed
     started = time.perf_counter()
-    while _kept(manifest, layout) < config.episodes:
-        if len(manifest.episodes) >= max_tries:
-            break
-        result = run_expert(task, seed, station_config, depth=config.depth)
-        entry = EpisodeEntry(
-            seed=seed, success=result.success, reason=result.reason, timings=result.timings
-        )
-        if result.success:
-            index = _kept(manifest, layout)
-            t_write = time.perf_counter()
-            meta = EpisodeMeta(
-                task=task.name,
-                seed=seed,
-                instruction=result.instruction,
-                embodiment=station_config.embodiment,
-                success=True,
-                object_count=task.object_count(result.scene),
-                config=config.model_dump(),
-                scene=result.scene,
-            )
-            save_episode(
-                layout,
-                index,
-                result.recorder,
-                result.rows,
-                meta,
-                instructions_seen=task.instructions("seen"),
-                instructions_unseen=task.instructions("unseen"),
-                video=config.video and config.render,
-            )
-            entry.index, entry.frames = index, len(result.recorder)
-            entry.timings["write"] = round(time.perf_counter() - t_write, 3)
-        manifest.episodes.append(entry)
-        manifest.timings["total"] = round(
-            manifest.timings.get("total", 0.0) + sum(entry.timings.values()), 3
-        )
-        write_manifest(layout.root, manifest)
-        if progress:
-            message = f"seed {seed}: " + ("kept" if result.success else result.reason or "")
-            progress(_kept(manifest, layout), len(manifest.episodes), config.episodes, message)
-        seed += 1
+    pool = _pool(config.workers)
+    pending: dict[Future, int] = {}
+    try:
+        while True:
+            kept, tried = _kept(manifest, layout), len(manifest.episodes)
+            while (
+                len(pending) < config.workers
+                and kept + len(pending) < config.episodes
+                and tried + len(pending) < max_tries
+            ):
+                pending[
+                    pool.submit(_run_seed, task.name, next_seed, station_config, config.depth)
+                ] = next_seed
+                next_seed += 1
+            if not pending:
+                break
+            done = next(as_completed(pending))
+            seed = pending.pop(done)
+            _record(done.result(), seed, task, layout, manifest, config, station_config)
+            if progress:
+                last = manifest.episodes[-1]
+                message = f"seed {seed}: " + ("kept" if last.success else last.reason or "")
+                progress(_kept(manifest, layout), len(manifest.episodes), config.episodes, message)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
     return _summary(layout, manifest, time.perf_counter() - started)
+
+
+def _run_seed(
+    task_name: str, seed: int, station_config: StationConfig, depth: bool
+) -> EpisodeResult:
+    """One seed, in a worker process (or inline)."""
+    return run_expert(get_task(task_name), seed, station_config, depth=depth)
+
+
+def _record(
+    result: EpisodeResult,
+    seed: int,
+    task: Task,
+    layout: EpisodeLayout,
+    manifest: Manifest,
+    config: GenerateConfig,
+    station_config: StationConfig,
+) -> None:
+    """Write a kept episode's files, then the manifest entry of this seed."""
+    entry = EpisodeEntry(
+        seed=seed, success=result.success, reason=result.reason, timings=result.timings
+    )
+    if result.success:
+        index = _kept(manifest, layout)
+        t_write = time.perf_counter()
+        meta = EpisodeMeta(
+            task=task.name,
+            seed=seed,
+            instruction=result.instruction,
+            embodiment=station_config.embodiment,
+            success=True,
+            object_count=task.object_count(result.scene),
+            config=config.model_dump(),
+            scene=result.scene,
+        )
+        save_episode(
+            layout,
+            index,
+            result.recorder,
+            result.rows,
+            meta,
+            instructions_seen=task.instructions("seen"),
+            instructions_unseen=task.instructions("unseen"),
+            video=config.video and config.render,
+        )
+        entry.index, entry.frames = index, len(result.recorder)
+        entry.timings["write"] = round(time.perf_counter() - t_write, 3)
+    manifest.episodes.append(entry)
+    manifest.timings["total"] = round(
+        manifest.timings.get("total", 0.0) + sum(entry.timings.values()), 3
+    )
+    write_manifest(layout.root, manifest)
+
+
+class _InlinePool:
+    """The one-worker 'pool': runs each seed in this process when it is submitted."""
+
+    def submit(self, fn, *args) -> Future:
+        future: Future = Future()
+        try:
+            future.set_result(fn(*args))
+        except BaseException as exc:  # noqa: BLE001 - re-raised by future.result()
+            future.set_exception(exc)
+        return future
+
+    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
+        pass
+
+
+def _pool(workers: int):
+    if workers <= 1:
+        return _InlinePool()
+    threads = str(max(1, (os.cpu_count() or 1) // workers))
+    return ProcessPoolExecutor(
+        max_workers=workers,
+        mp_context=get_context("spawn"),
+        initializer=_limit_threads,
+        initargs=(threads,),
+    )
+
+
+def _limit_threads(threads: str) -> None:
+    # Mesa's software renderer otherwise starts one thread per core in every worker.
+    os.environ["LP_NUM_THREADS"] = threads
 
 
 def _open_manifest(layout: EpisodeLayout, config: GenerateConfig) -> Manifest:
