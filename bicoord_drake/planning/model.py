@@ -17,6 +17,12 @@
 Configurations: planning uses ``q12 = [left 6 arm joints, right 6 arm joints]``; ``full_q(q12)``
 adds the fixed finger positions to give the plant's position vector.
 
+Checking: ``set_padding(clearance, env_clearance)`` (or the ``padded`` context manager) sets the
+checker's margins - ``clearance`` between the two arms and what they hold, ``env_clearance`` for
+each arm's self pairs and against the table and objects; ``collision_free(q12)``,
+``colliding_pairs(q12)`` and ``edge_free(a, b, resolution)`` query it. ``path_distance(a, b)``
+bounds how far any robot point moves along a joint-space segment (the resolution metric).
+
 Distances for the optimisers (:mod:`.ik`, :mod:`.motion`) come from two diagram contexts whose
 collision filters split the geometry pairs in two classes: ``"arms"`` (left arm with what it
 holds vs right arm with what it holds) and ``"env"`` (each arm's self pairs and arm vs table and
@@ -28,6 +34,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from pydrake.all import (
@@ -44,6 +51,7 @@ from pydrake.all import (
     RigidTransform,
     RobotDiagramBuilder,
     SceneGraphCollisionChecker,
+    Shape,
     Sphere,
 )
 
@@ -69,7 +77,7 @@ class HeldObject:
     X_GO: RigidTransform
 
 
-def drake_shape(prim: Primitive):
+def drake_shape(prim: Primitive) -> Shape:
     """Drake shape of a collision primitive (in the primitive's own frame)."""
     if prim.kind == "box":
         return Box(*prim.size)
@@ -93,20 +101,34 @@ def _bounding_radius(shape) -> float:
     raise TypeError(f"unsupported collision shape {type(shape).__name__}")
 
 
+@lru_cache(maxsize=4096)
+def _bisection_order(n: int) -> np.ndarray:
+    """0..n ordered coarse to fine: both ends, the midpoint, the quarter points, ..."""
+    seen = np.zeros(n + 1, bool)
+    order = []
+    level = 0
+    while len(order) < n + 1:
+        grid = np.unique(np.round(np.linspace(0, n, 2**level + 1)).astype(int))
+        new = grid[~seen[grid]]
+        seen[new] = True
+        order.extend(new.tolist())
+        level += 1
+    return np.array(order, dtype=float)
+
+
 class PlanningModel:
     """Kinematic + collision model of the two arms in one scene (see the module docstring)."""
 
-    def __init__(self, scene: Scene | None = None, embodiment: Embodiment | str = "aloha_viperx"):
+    def __init__(
+        self, scene: Scene | None = None, embodiment: Embodiment | str = "aloha_viperx"
+    ) -> None:
         self.scene = scene or Scene()
-        self.embodiment = (
-            get_embodiment(embodiment) if isinstance(embodiment, str) else embodiment
-        )
+        self.embodiment = get_embodiment(embodiment) if isinstance(embodiment, str) else embodiment
         builder = RobotDiagramBuilder(time_step=0.0)
         plant = builder.plant()
         builder.parser().AddModelsFromString(table_sdf(), "sdf")
         self.arms = add_robot(plant, self.embodiment)
         self._anchors: dict[str, FixedOffsetFrame] = {}
-        self._object_bodies = {}
         for obj in self.scene.objects:
             (inst,) = builder.parser().AddModelsFromString(object_sdf(obj), "sdf")
             body = plant.GetBodyByName(obj.name, inst)
@@ -115,7 +137,6 @@ class PlanningModel:
             )
             plant.WeldFrames(anchor, body.body_frame(), RigidTransform())
             self._anchors[obj.name] = anchor
-            self._object_bodies[obj.name] = body
         plant.Finalize()
         self.diagram = builder.Build()
         self.plant = plant
@@ -164,8 +185,8 @@ class PlanningModel:
             edge_step_size=0.01,
             env_collision_padding=0.0,
             self_collision_padding=0.0,
+            # Measured: OpenMP threads only slow the checks down on the 2-core target machine.
             implicit_context_parallelism=Parallelism(1),
-            configuration_distance_function=self._checker_distance,
         )
         for side in SIDES:
             self.set_gripper(side, self.embodiment.home_opening)
@@ -184,6 +205,7 @@ class PlanningModel:
         return q
 
     def q12(self, q_full: np.ndarray) -> np.ndarray:
+        """The planning joints of a plant position vector."""
         return np.asarray(q_full)[self.q12_indices]
 
     def side_slice(self, side: str) -> slice:
@@ -196,6 +218,7 @@ class PlanningModel:
         self._q_full[self.finger_indices[side]] = finger
 
     def within_limits(self, q12: np.ndarray, tol: float = 1e-6) -> bool:
+        """Whether `q12` is within the joint limits (to `tol`)."""
         return bool(np.all(q12 >= self.lower - tol) and np.all(q12 <= self.upper + tol))
 
     # ------------------------------------------------------------------ kinematics
@@ -222,17 +245,27 @@ class PlanningModel:
         """Move an obstacle (not allowed while it is held)."""
         if name not in self._anchors:
             raise KeyError(f"no object {name!r} in the planning scene")
-        if any(h.name == name for h in self._held.values()):
+        if self._holder(name) is not None:
             raise PlanningError("object_held", f"{name} is held; detach it before moving it")
         self._object_poses[name] = X_WO
-        self._set_anchor(name, X_WO)
+        self._refresh_anchor(name)
 
-    def _set_anchor(self, name: str, X_WO: RigidTransform) -> None:
-        anchor = self._anchors[name]
+    def _holder(self, name: str) -> str | None:
+        return next((side for side, h in self._held.items() if h.name == name), None)
+
+    def _anchor_pose(self, name: str) -> RigidTransform:
+        """Where the object's own body is: parked while held or ignored."""
+        if name in self._ignored or self._holder(name) is not None:
+            return PARK
+        return self._object_poses[name]
+
+    def _refresh_anchor(self, name: str) -> None:
+        anchor, X = self._anchors[name], self._anchor_pose(name)
         self.checker.PerformOperationAgainstAllModelContexts(
-            lambda _model, ctx: anchor.SetPoseInParentFrame(ctx.plant_context(), X_WO)
+            lambda _model, ctx: anchor.SetPoseInParentFrame(ctx.plant_context(), X)
         )
-        self._contexts.clear()
+        for _, plant_ctx in self._contexts.values():
+            anchor.SetPoseInParentFrame(plant_ctx, X)
 
     @property
     def held(self) -> dict[str, HeldObject]:
@@ -243,21 +276,25 @@ class PlanningModel:
         """X_WO of the object held by `side` at `q12`."""
         return self.gripper_pose(q12, side) @ self._held[side].X_GO
 
-    def attach(self, name: str, side: str, q12: np.ndarray, X_WO: RigidTransform | None = None):
+    def attach(
+        self, name: str, side: str, q12: np.ndarray, X_WO: RigidTransform | None = None
+    ) -> None:
         """`side` grasps `name` at configuration `q12` (object at `X_WO`, default: its current
         pose); from now on it moves with that gripper and is checked as part of the robot."""
         if side in self._held:
             raise PlanningError("gripper_busy", f"{side} gripper already holds {self._held[side]}")
-        if any(h.name == name for h in self._held.values()):
+        if self._holder(name) is not None:
             raise PlanningError("object_held", f"{name} is already held")
         X_WO = self._object_poses[name] if X_WO is None else X_WO
         X_GO = self.gripper_pose(q12, side).inverse() @ X_WO
         self._held[side] = HeldObject(name, side, X_GO)
         self._object_poses[name] = X_WO
-        self._set_anchor(name, PARK)
+        self._refresh_anchor(name)
         self._sync_checker_held(side)
 
-    def detach(self, side: str, q12: np.ndarray | None = None, X_WO: RigidTransform | None = None):
+    def detach(
+        self, side: str, q12: np.ndarray | None = None, X_WO: RigidTransform | None = None
+    ) -> None:
         """Release what `side` holds; it stays where the gripper is at `q12` (or at `X_WO`)."""
         held = self._held.pop(side, None)
         if held is None:
@@ -306,14 +343,16 @@ class PlanningModel:
             self._set_ignored(previous)
 
     def _set_ignored(self, names: frozenset[str]) -> None:
+        # An ignored object is parked out of reach (a held one loses its attached shapes):
+        # cheaper than rewriting collision filters in every checker context.
+        changed = names ^ self._ignored
         self._ignored = names
-        robot = [b for side in SIDES for b in self.robot_bodies[side]]
-        for name, body in self._object_bodies.items():
-            for rb in robot:
-                self.checker.SetCollisionFilteredBetween(body, rb, name in names)
-        for side in self._held:
-            self._sync_checker_held(side)
-        self._contexts.clear()
+        for name in changed:
+            side = self._holder(name)
+            if side is None:
+                self._refresh_anchor(name)
+            else:
+                self._sync_checker_held(side)
 
     # ------------------------------------------------------------------ distance contexts
     def distance_context(self, kind: str) -> Context:
@@ -328,17 +367,8 @@ class PlanningModel:
         plant_ctx = self.plant.GetMyMutableContextFromRoot(root)
         sg_ctx = self.scene_graph.GetMyMutableContextFromRoot(root)
         for name, anchor in self._anchors.items():
-            held = any(h.name == name for h in self._held.values())
-            anchor.SetPoseInParentFrame(plant_ctx, PARK if held else self._object_poses[name])
-        geoms = {
-            side: [g for b in self.robot_bodies[side] for g in self.plant.GetCollisionGeometriesForBody(b)]
-            for side in SIDES
-        }
-        ignored = [
-            g
-            for name in self._ignored
-            for g in self.plant.GetCollisionGeometriesForBody(self._object_bodies[name])
-        ]
+            anchor.SetPoseInParentFrame(plant_ctx, self._anchor_pose(name))
+        geoms = {side: self._geometries(self.robot_bodies[side]) for side in SIDES}
         held_geoms: dict[str, list] = {side: [] for side in SIDES}
         source = self.plant.get_source_id()
         for side, held in self._held.items():
@@ -366,20 +396,18 @@ class PlanningModel:
             decl.ExcludeBetween(left, right).ExcludeWithin(GeometrySet(env))
             for side in SIDES:
                 # The held object touches its own gripper and fingers.
-                grip = [
-                    g
-                    for b in self.robot_bodies[side]
-                    if b.name() in self._gripper_cluster
-                    for g in self.plant.GetCollisionGeometriesForBody(b)
-                ]
-                decl.ExcludeBetween(GeometrySet(held_geoms[side]), GeometrySet(grip))
+                grip = [b for b in self.robot_bodies[side] if b.name() in self._gripper_cluster]
+                decl.ExcludeBetween(
+                    GeometrySet(held_geoms[side]), GeometrySet(self._geometries(grip))
+                )
                 decl.ExcludeWithin(GeometrySet(held_geoms[side]))
         else:
             raise ValueError(f"unknown distance context {kind!r}; use 'arms' or 'env'")
-        if ignored:
-            decl.ExcludeBetween(GeometrySet(ignored), GeometrySet(env + list(robot_all)))
         self.scene_graph.collision_filter_manager(sg_ctx).Apply(decl)
         return root, plant_ctx
+
+    def _geometries(self, bodies: Iterable) -> list:
+        return [g for b in bodies for g in self.plant.GetCollisionGeometriesForBody(b)]
 
     @property
     def _gripper_cluster(self) -> set[str]:
@@ -404,6 +432,16 @@ class PlanningModel:
         np.fill_diagonal(pad, 0.0)
         self.checker.SetPaddingMatrix(pad)
 
+    @contextmanager
+    def padded(self, clearance: float, env_clearance: float) -> Iterator[None]:
+        """`set_padding` within the block; the previous padding is restored after it."""
+        previous = self.checker.GetPaddingMatrix()
+        self.set_padding(clearance, env_clearance)
+        try:
+            yield
+        finally:
+            self.checker.SetPaddingMatrix(previous)
+
     def collision_free(self, q12: np.ndarray) -> bool:
         """Whether `q12` is collision-free under the current padding (held objects included)."""
         return bool(self.checker.CheckConfigCollisionFree(self.full_q(q12)))
@@ -419,6 +457,27 @@ class PlanningModel:
                 out.append((self._body_label(r), self._body_label(o), float(d)))
         return sorted(set(out), key=lambda x: x[2])
 
+    def edge_free(
+        self, q12_a: np.ndarray, q12_b: np.ndarray, resolution: float, endpoints: bool = True
+    ) -> bool:
+        """Whether the straight segment a-b is collision-free (current padding), checked so that
+        no robot point moves more than `resolution` (m) between checks. Checks run coarse to
+        fine (bisection order), so a colliding segment is usually rejected after a few."""
+        a, b = np.asarray(q12_a, float), np.asarray(q12_b, float)
+        n = max(1, int(np.ceil(self.path_distance(a, b) / resolution)))
+        order = _bisection_order(n) if endpoints else _bisection_order(n)[2:]
+        start = 0
+        size = 4
+        while start < len(order):
+            t = order[start : start + size] / n
+            Q = np.tile(self._q_full, (len(t), 1))
+            Q[:, self.q12_indices] = a + t[:, None] * (b - a)
+            if not all(self.checker.CheckConfigsCollisionFree(list(Q))):
+                return False
+            start += size
+            size *= 2
+        return True
+
     def _body_label(self, index) -> str:
         body = self.plant.get_body(index)
         inst = self.plant.GetModelInstanceName(body.model_instance())
@@ -426,12 +485,11 @@ class PlanningModel:
 
     # ------------------------------------------------------------------ path resolution
     def path_distance(self, q12_a: np.ndarray, q12_b: np.ndarray) -> float:
-        """An upper bound (m) on how far any robot point (held objects included) moves along
-        the straight joint-space segment from `q12_a` to `q12_b`."""
-        return float(np.abs(np.asarray(q12_b) - np.asarray(q12_a)) @ self.joint_radius)
-
-    def _checker_distance(self, q1: np.ndarray, q2: np.ndarray) -> float:
-        return float(np.abs(q2 - q1)[self.q12_indices] @ self.joint_radius)
+        """An upper bound (m) on how far any single robot point (held objects included) moves
+        along the straight joint-space segment from `q12_a` to `q12_b`: per arm, the sum over
+        its joints of |dq| times the joint's lever-arm bound; the larger of the two arms."""
+        d = np.abs(np.asarray(q12_b, float) - np.asarray(q12_a, float)) * self.joint_radius
+        return float(max(d[:6].sum(), d[6:].sum()))
 
     def _joint_radius_bounds(self) -> np.ndarray:
         """Per joint, a bound on the distance from its axis of any collision geometry it moves.
@@ -443,11 +501,14 @@ class PlanningModel:
         inspector = self.scene_graph.model_inspector()
         reach = {}
         for body in self.robot_bodies["left"]:
-            r = 0.0
-            for g in self.plant.GetCollisionGeometriesForBody(body):
-                X_BG = inspector.GetPoseInFrame(g)
-                r = max(r, np.linalg.norm(X_BG.translation()) + _bounding_radius(inspector.GetShape(g)))
-            reach[body.name()] = r
+            reach[body.name()] = max(
+                (
+                    np.linalg.norm(inspector.GetPoseInFrame(g).translation())
+                    + _bounding_radius(inspector.GetShape(g))
+                    for g in self.plant.GetCollisionGeometriesForBody(body)
+                ),
+                default=0.0,
+            )
         child_links = [j.child for j in arm.joints]
         # Geometry of the gripper link includes the fingers (they ride on it).
         g_link = arm.gripper_link.name
@@ -456,7 +517,6 @@ class PlanningModel:
             reach[g_link],
             finger_origin + max(reach["left_finger"], reach["right_finger"]),
         )
-        self._gripper_reach = reach[g_link]
         offsets = [float(np.linalg.norm(j.origin.xyz)) for j in arm.joints]
         radius = np.zeros(len(arm.joints))
         for i in range(len(arm.joints)):
@@ -477,7 +537,10 @@ class PlanningModel:
         n = len(arm.joints)
         for side, held in self._held.items():
             ext = max(
-                (np.linalg.norm(X.translation()) + _bounding_radius(s) for s, X in self._held_shapes(held)),
+                (
+                    np.linalg.norm(X_GP.translation()) + _bounding_radius(shape)
+                    for shape, X_GP in self._held_shapes(held)
+                ),
                 default=0.0,
             )
             for i in range(n):

@@ -6,21 +6,25 @@ collision-free - held objects included - under the requested clearances, checked
 ``resolution`` metres (a per-joint bound on the lever arm of every link, from
 :meth:`PlanningModel.path_distance`, not a joint-angle step).
 
-Search, in order: the straight segment; one random via-point (around the midpoint, then anywhere);
-a bidirectional RRT-Connect; then random shortcutting. With ``refine``, a
-``KinematicTrajectoryOptimization`` (SNOPT) seeded from that path smooths it under
+Search, in order: the straight segment; a via-point (one arm at a time in either order, then
+random around the midpoint, then anywhere); a bidirectional RRT-Connect; then random
+shortcutting. The search checks at a coarse resolution (rejecting colliding segments early, in
+bisection order) and the path it finds is then verified at the requested resolution; if that
+fails the search is repeated at the requested resolution. With ``refine``, a
+``KinematicTrajectoryOptimization`` (SNOPT) seeded from the path smooths it under
 minimum-distance constraints; its result is sampled back into waypoints and kept only if it
-passes the same dense check. Every returned path is re-verified densely before it is returned;
-a path that fails is never returned (``PlanningError`` instead).
+passes the same dense check. A path that fails the dense check is never returned
+(``PlanningError`` instead).
 
-If ``clearance >= resolution`` and ``env_clearance >= resolution / 2``, a path that passes the
-check is collision-free in continuous motion, not only at the checked samples.
+Between two checks a robot point is at most ``resolution / 2`` from where it was checked, so
+with ``clearance >= resolution`` and ``env_clearance >= resolution`` a checked path is
+collision-free in continuous motion, not only at the samples.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 
 import numpy as np
 from pydrake.all import (
@@ -34,11 +38,18 @@ from pydrake.all import (
 )
 
 from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.models.table import TABLE_SIZE
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.model import PlanningModel
 
 #: RRT-Connect extension step, as a bound on robot-point motion (m).
 RRT_STEP = 0.25
+#: Resolution (m) of the checks while searching; found paths are then verified at the fine
+#: resolution, and the search is repeated at that resolution if the verification fails.
+SEARCH_RESOLUTION = 0.04
+#: SNOPT major-iteration cap of the trajectory refinement.
+KTO_MAJOR_ITERATIONS = 100
 
 
 def plan_path(
@@ -53,8 +64,9 @@ def plan_path(
     ignore: Iterable[str] = (),
     refine: bool = False,
     via_tries: int = 200,
-    max_time: float = 5.0,
-    shortcut_iters: int = 60,
+    rrt_iters: int = 3000,
+    shortcut_iters: int = 20,
+    max_time: float = 30.0,
     rng: np.random.Generator | int | None = 0,
 ) -> np.ndarray:
     """Collision-free waypoints (K, 12) from `q_start` to `q_goal` (both q12).
@@ -62,47 +74,49 @@ def plan_path(
     Only the joints of `arms` move (the others must be equal in start and goal).
     `clearance` (m) applies between the two arms and what they hold, `env_clearance` (m) to
     each arm's self pairs, the table and the objects; objects in `ignore` are not checked.
+    The search is seeded by `rng` and bounded by iteration counts (`via_tries`, `rrt_iters`,
+    `shortcut_iters`), so it is reproducible; `max_time` (s) is only a safety stop.
     Raises PlanningError ('start_in_collision', 'goal_in_collision', 'no_path',
-    'path_in_collision').
+    'path_in_collision'; '*_out_of_limits').
     """
     q_start, q_goal = _check_input(model, q_start, q_goal, arms)
     moving = np.zeros(12, bool)
     for side in arms:
         moving[model.side_slice(side)] = True
     rng = np.random.default_rng(rng)
-    with model.ignoring(ignore):
-        model.set_padding(clearance, env_clearance)
-        model.checker.set_edge_step_size(resolution)
+    with model.ignoring(ignore), model.padded(clearance, env_clearance):
         for q, what in ((q_start, "start"), (q_goal, "goal")):
             if not model.collision_free(q):
                 raise PlanningError(f"{what}_in_collision", _pairs_text(model, q, what))
-        planner = _Planner(model, moving, rng)
-        path = planner.solve(q_start, q_goal, via_tries, max_time)
-        path = planner.shortcut(path, shortcut_iters)
-        if refine:
-            refined = refine_path(model, path, clearance=clearance, env_clearance=env_clearance)
-            if refined is not None and verify_path(model, refined, resolution):
-                path = refined
-        model.set_padding(clearance, env_clearance)
-        if not verify_path(model, path, resolution):
+        path = None
+        deadline = time.perf_counter() + max_time
+        for search_resolution in dict.fromkeys([max(SEARCH_RESOLUTION, resolution), resolution]):
+            planner = _Planner(model, moving, rng, search_resolution)
+            candidate = planner.solve(q_start, q_goal, via_tries, rrt_iters, deadline)
+            candidate = planner.shortcut(candidate, shortcut_iters)
+            if verify_path(model, candidate, resolution):
+                path = candidate
+                break
+        if path is None:
             raise PlanningError(
                 "path_in_collision",
-                "the planned path failed the final dense collision check "
-                f"at {resolution * 100:.1f} cm resolution",
+                f"every path found failed the dense collision check at {resolution * 100:.1f} cm",
             )
+        if refine:
+            refined = refine_path(model, path, clearance=clearance, env_clearance=env_clearance)
+            model.set_padding(clearance, env_clearance)
+            if refined is not None and verify_path(model, refined, resolution):
+                path = refined
     return path
 
 
 def verify_path(model: PlanningModel, path: np.ndarray, resolution: float = 0.01) -> bool:
     """Whether every straight segment of `path` is collision-free (current padding) when
     checked so that no robot point moves more than `resolution` between checks."""
-    configs = []
-    for a, b in zip(path[:-1], path[1:], strict=True):
-        n = max(1, int(np.ceil(model.path_distance(a, b) / resolution)))
-        for t in np.linspace(0.0, 1.0, n + 1)[:-1]:
-            configs.append(model.full_q(a + t * (b - a)))
-    configs.append(model.full_q(path[-1]))
-    return bool(np.all(model.checker.CheckConfigsCollisionFree(configs)))
+    path = np.asarray(path, dtype=float)
+    if not all(model.within_limits(q) for q in path):
+        return False
+    return all(model.edge_free(a, b, resolution) for a, b in zip(path[:-1], path[1:], strict=True))
 
 
 def sample_configuration(
@@ -111,22 +125,37 @@ def sample_configuration(
     *,
     clearance: float = 0.03,
     env_clearance: float = 0.01,
-    tcp_region: tuple[np.ndarray, np.ndarray] | None = None,
-    max_tries: int = 100_000,
+    tcp_regions: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
+    max_tries: int = 200_000,
 ) -> np.ndarray:
-    """A uniformly random q12 within the limits that is collision-free with the given
-    clearances and, with `tcp_region` = (lower xyz, upper xyz), has both TCPs inside it."""
-    model.set_padding(clearance, env_clearance)
-    for _ in range(max_tries):
-        q = rng.uniform(model.lower, model.upper)
-        if tcp_region is not None:
-            lo, hi = tcp_region
-            ps = [model.tcp_pose(q, side).translation() for side in SIDES]
-            if not all(np.all(p >= lo) and np.all(p <= hi) for p in ps):
-                continue
-        if model.collision_free(q):
-            return q
+    """A uniformly random q12 within the joint limits, collision-free with the given
+    clearances, with each TCP in its box `tcp_regions[side]` = (lower xyz, upper xyz), if any.
+    Used for reachable IK targets (FK of a sample) and for test and benchmark cases."""
+    regions = {
+        side: (np.asarray(lo), np.asarray(hi)) for side, (lo, hi) in (tcp_regions or {}).items()
+    }
+    with model.padded(clearance, env_clearance):
+        for _ in range(max_tries):
+            q = rng.uniform(model.lower, model.upper)
+            if all(
+                _inside(model.tcp_pose(q, side).translation(), box) for side, box in regions.items()
+            ):
+                if model.collision_free(q):
+                    return q
     raise PlanningError("no_sample", f"no valid configuration in {max_tries} samples")
+
+
+def _inside(p: np.ndarray, box: tuple[np.ndarray, np.ndarray]) -> bool:
+    return bool(np.all(p >= box[0]) and np.all(p <= box[1]))
+
+
+def table_region(margin: float = 0.05, height: float = 0.6) -> tuple[np.ndarray, np.ndarray]:
+    """The box above the table top (from `margin` to `height` above it), for `tcp_regions`."""
+    sx, sy = TABLE_SIZE
+    return (
+        np.array([-sx / 2, -sy / 2, TABLE_TOP + margin]),
+        np.array([sx / 2, sy / 2, TABLE_TOP + height]),
+    )
 
 
 # --------------------------------------------------------------------------------------------
@@ -135,84 +164,96 @@ def sample_configuration(
 
 
 class _Planner:
-    def __init__(self, model: PlanningModel, moving: np.ndarray, rng: np.random.Generator):
+    def __init__(self, model: PlanningModel, moving: np.ndarray, rng, resolution: float):
         self.m = model
         self.moving = moving
         self.rng = rng
+        self.resolution = resolution
         self.lower, self.upper = model.lower, model.upper
         self.edge_checks = 0
 
     def free(self, q: np.ndarray) -> bool:
         return self.m.collision_free(q)
 
-    def edge(self, a: np.ndarray, b: np.ndarray) -> bool:
+    def edge(self, a: np.ndarray, b: np.ndarray, endpoints: bool = False) -> bool:
+        """Segment check (the ends are assumed free unless `endpoints`)."""
         self.edge_checks += 1
-        return bool(self.m.checker.CheckEdgeCollisionFree(self.m.full_q(a), self.m.full_q(b)))
+        return self.m.edge_free(a, b, self.resolution, endpoints=endpoints)
 
     def random(self) -> np.ndarray:
         q = self.base.copy()
         q[self.moving] = self.rng.uniform(self.lower[self.moving], self.upper[self.moving])
         return q
 
-    def solve(self, start, goal, via_tries: int, max_time: float) -> np.ndarray:
+    def solve(self, start, goal, via_tries: int, rrt_iters: int, deadline: float) -> np.ndarray:
         self.base = start.copy()
         if self.edge(start, goal):
             return np.array([start, goal])
-        deadline = time.perf_counter() + max_time
-        mid = 0.5 * (start + goal)
-        span = np.abs(goal - start)
-        for k in range(via_tries):
-            if k < via_tries // 2:  # near the midpoint, spreading out
-                sigma = 0.2 + 1.5 * k / via_tries + 0.5 * span
-                v = mid.copy()
-                v[self.moving] += self.rng.normal(0.0, sigma[self.moving])
-                v = np.clip(v, self.lower, self.upper)
-            else:
-                v = self.random()
+        for v in self._vias(start, goal, via_tries):
             if self.free(v) and self.edge(start, v) and self.edge(v, goal):
                 return np.array([start, v, goal])
             if time.perf_counter() > deadline:
                 break
-        path = self.rrt_connect(start, goal, deadline)
+        path = self.rrt_connect(start, goal, rrt_iters, deadline)
         if path is None:
             raise PlanningError(
                 "no_path",
-                f"no collision-free path found within {max_time:.1f} s "
-                f"({self.edge_checks} edge checks)",
+                f"no collision-free path: straight line, {via_tries} via-points and "
+                f"{rrt_iters} RRT-Connect iterations failed ({self.edge_checks} edge checks)",
             )
         return path
 
-    def rrt_connect(self, start, goal, deadline) -> np.ndarray | None:
-        trees = [([start], [-1]), ([goal], [-1])]
+    def _vias(self, start, goal, tries: int) -> Iterator[np.ndarray]:
+        """Via-point candidates: one arm at a time (either order: often untangles a swap), then
+        around the midpoint with a spread that grows, then anywhere within the limits."""
+        if self.moving.all():
+            for first in (slice(0, 6), slice(6, 12)):
+                v = start.copy()
+                v[first] = goal[first]
+                yield v
+        mid, span = 0.5 * (start + goal), np.abs(goal - start)
+        for k in range(tries):
+            if k < tries // 2:
+                v = mid.copy()
+                sigma = 0.2 + 1.5 * k / tries + 0.5 * span[self.moving]
+                v[self.moving] += self.rng.normal(0.0, sigma)
+                yield np.clip(v, self.lower, self.upper)
+            else:
+                yield self.random()
+
+    def rrt_connect(self, start, goal, iters: int, deadline: float) -> np.ndarray | None:
+        """Bidirectional RRT-Connect over the moving joints (trees alternate roles)."""
+        trees = [([start], [-1]), ([goal], [-1])]  # (nodes, parent indices)
         w = self.m.joint_radius
-        while time.perf_counter() < deadline:
-            target = self.random()
+        for _ in range(iters):
+            if time.perf_counter() > deadline:
+                return None
             a, b = trees
-            new = self._extend(a, target, w)
+            new = self._extend(a, self.random(), w)
             if new is not None:
                 reached = self._connect(b, a[0][new], w)
                 if reached is not None:
-                    pa, pb = self._branch(a, new), self._branch(b, reached)
-                    path = pa[::-1] + pb
-                    if trees[0][0][0] is not start:
-                        path = path[::-1]
+                    path = self._branch(a, new)[::-1] + self._branch(b, reached)
+                    if a[0][0] is not start:
+                        path.reverse()
                     return np.array(path)
             trees.reverse()
         return None
 
-    def _nearest(self, tree, q, w) -> int:
-        nodes = np.asarray(tree[0])
-        return int(np.argmin(np.abs(nodes - q) @ w))
+    @staticmethod
+    def _nearest(tree, q, w) -> int:
+        d = np.abs(np.asarray(tree[0]) - q) * w
+        return int(np.argmin(np.maximum(d[:, :6].sum(1), d[:, 6:].sum(1))))
 
-    def _steer(self, q_from, q_to, w) -> np.ndarray:
-        d = float(np.abs(q_to - q_from) @ w)
+    def _steer(self, q_from, q_to) -> np.ndarray:
+        d = self.m.path_distance(q_from, q_to)
         if d <= RRT_STEP:
             return q_to
         return q_from + (q_to - q_from) * (RRT_STEP / d)
 
     def _extend(self, tree, target, w) -> int | None:
         i = self._nearest(tree, target, w)
-        q_new = self._steer(tree[0][i], target, w)
+        q_new = self._steer(tree[0][i], target)
         if self.edge(tree[0][i], q_new):
             tree[0].append(q_new)
             tree[1].append(i)
@@ -222,7 +263,7 @@ class _Planner:
     def _connect(self, tree, target, w) -> int | None:
         while True:
             i = self._nearest(tree, target, w)
-            q_new = self._steer(tree[0][i], target, w)
+            q_new = self._steer(tree[0][i], target)
             if not self.edge(tree[0][i], q_new):
                 return None
             tree[0].append(q_new)
@@ -255,10 +296,21 @@ class _Planner:
                 continue
             a = path[i] + self.rng.uniform() * (path[i + 1] - path[i])
             b = path[j] + self.rng.uniform() * (path[j + 1] - path[j])
-            if self.edge(a, b):
-                path = path[: i + 1] + [a, b] + path[j + 1 :]
-                path = [p for k, p in enumerate(path) if k == 0 or not np.allclose(p, path[k - 1])]
+            if self.edge(a, b, endpoints=True):
+                path = _dedupe(path[: i + 1] + [a, b] + path[j + 1 :])
         return np.array(path)
+
+
+def _dedupe(path: list[np.ndarray]) -> list[np.ndarray]:
+    """Drop waypoints equal (to 1e-9) to their predecessor; the two ends are kept exactly."""
+    out = [path[0]]
+    for p in path[1:-1]:
+        if not np.allclose(p, out[-1], rtol=0.0, atol=1e-9):
+            out.append(p)
+    if len(out) > 1 and np.allclose(path[-1], out[-1], rtol=0.0, atol=1e-9):
+        out.pop()
+    out.append(path[-1])
+    return out
 
 
 # --------------------------------------------------------------------------------------------
@@ -273,17 +325,23 @@ def refine_path(
     clearance: float = 0.01,
     env_clearance: float = 0.005,
     num_control_points: int = 12,
-    num_samples: int = 25,
+    num_samples: int | None = None,
     margin: float = 0.005,
-    output_points: int = 40,
+    output_points: int | None = None,
 ) -> np.ndarray | None:
     """Smooth `path` with KinematicTrajectoryOptimization (path length + duration cost,
-    velocity limits, minimum distances + `margin` at `num_samples` interior samples), seeded
-    from the path. Returns `output_points` waypoints sampled from the result, or None if the
-    optimiser fails. The result is *not* yet dense-checked (``plan_path`` does that)."""
+    velocity limits, minimum distances + `margin` at `num_samples` interior samples - default:
+    one per 10 cm of robot motion, 20 to 60), seeded from the path. Returns `output_points`
+    waypoints (default: one per 2 cm of motion, at most 400) sampled from the result, or None
+    if the optimiser fails. The result is *not* yet dense-checked (``plan_path`` does that)."""
     m = model
     nq = m.num_positions
     order = 4
+    length = sum(m.path_distance(a, b) for a, b in zip(path[:-1], path[1:], strict=True))
+    if num_samples is None:
+        num_samples = int(np.clip(length / 0.1, 20, 60))
+    if output_points is None:
+        output_points = int(np.clip(length / 0.02, 10, 400))
     seed = _resample(m, path, num_control_points)
     basis = BsplineBasis(order, num_control_points, KnotVectorType.kClampedUniform, 0.0, 1.0)
     traj = BsplineTrajectory(basis, [m.full_q(q).reshape(-1, 1) for q in seed])
@@ -315,8 +373,13 @@ def refine_path(
     options = SolverOptions()
     options.SetOption(solver.solver_id(), "Major feasibility tolerance", 1e-4)
     options.SetOption(solver.solver_id(), "Major optimality tolerance", 1e-4)
+    options.SetOption(solver.solver_id(), "Major iterations limit", KTO_MAJOR_ITERATIONS)
     result = solver.Solve(prog, None, options)
-    if not result.is_success():
+    # SNOPT often ends with info 41 ("cannot improve") on feasible points: judge feasibility.
+    if not (
+        result.is_success()
+        or prog.CheckSatisfied(prog.GetAllConstraints(), result.GetSolution(), 1e-3)
+    ):
         return None
     out = kto.ReconstructTrajectory(result)
     ts = np.linspace(out.start_time(), out.end_time(), output_points)
@@ -350,7 +413,9 @@ def _check_input(model, q_start, q_goal, arms) -> tuple[np.ndarray, np.ndarray]:
             raise ValueError(f"q_{what} must be a finite 12-vector, got shape {q.shape}")
         if not model.within_limits(q):
             bad = np.flatnonzero((q < model.lower - 1e-6) | (q > model.upper + 1e-6))
-            raise PlanningError(f"{what}_out_of_limits", f"q12 entries {bad.tolist()} violate limits")
+            raise PlanningError(
+                f"{what}_out_of_limits", f"q12 entries {bad.tolist()} are outside the joint limits"
+            )
     if not arms or set(arms) - set(SIDES):
         raise ValueError(f"arms must be a non-empty subset of {SIDES}, got {arms}")
     for side in SIDES:
