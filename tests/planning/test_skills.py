@@ -6,8 +6,11 @@ import pytest
 from pydrake.all import RigidTransform
 
 from bicoord_drake.config import StationConfig
+from bicoord_drake.models.geometry import Pose
+from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
 from bicoord_drake.models.scene import Scene, cube
 from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.grasps import stack_target
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import ArmPlan, Skills
 from bicoord_drake.sim.simulation import Simulation
@@ -77,3 +80,119 @@ def test_arm_plans_chain_only_where_they_meet():
     c = ArmPlan("left", np.zeros((4, 6)), np.zeros(4), events=[(1, "attach", "x")])
     chained = a.then(c)
     assert chained.num_steps == 6 and chained.events == [(3, "attach", "x")]
+
+
+# --------------------------------------------------------------------------------------------
+# Pour, push, stabilize, release
+# --------------------------------------------------------------------------------------------
+
+BOWL = BowlShape(radius=0.075, base_radius=0.075, height=0.05, wall=0.012)
+
+
+def _bowl(x: float, y: float, shape: BowlShape = BOWL) -> SceneObject:
+    return SceneObject(
+        name="bowl", shape=shape, color=(0.9, 0.9, 0.85, 1), mass=0.1, pose=Pose(xyz=(x, y, 0.75))
+    )
+
+
+def test_pour_turns_the_bowl_about_its_rim_and_back():
+    skills = Skills(PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75)
+    skills.pick("left", "bowl", kinds=["rim"], lift=0.12)
+    X0 = skills.model.held_pose("left", skills.q)
+    q0 = skills.q.copy()
+    angle = np.radians(60)
+    pour = skills.pour("left", angle, hold_steps=5)
+    # the rim point on the pouring side stays put; the tilt reaches the angle; back level
+    poses = [skills.model.held_pose("left", np.r_[q6, q0[6:]]) for q6 in pour.q]
+    tilts = [np.arccos(np.clip(X.rotation().col(2)[2], -1, 1)) for X in poses]
+    assert max(tilts) == pytest.approx(angle, abs=1e-3)
+    assert np.allclose(pour.q[-1], q0[:6], atol=1e-3)
+    up = X0.rotation().col(2)
+    rims = [
+        X0.translation() + 0.05 * up + 0.075 * d
+        for d in (np.array(v, float) for v in ((1, 0, 0), (-1, 0, 0), (0, 1, 0), (0, -1, 0)))
+    ]
+    fixed = [
+        p for p in rims if all(np.linalg.norm(X @ (X0.inverse() @ p) - p) < 1e-3 for X in poses)
+    ]
+    assert len(fixed) == 1
+    speed = np.abs(np.diff(pour.q, axis=0)) / skills.dt
+    assert np.all(speed <= skills.limits6.velocity + 1e-9)
+    with pytest.raises(PlanningError) as info:
+        skills.pour("left", np.radians(170))
+    assert info.value.reason == "pour_failed"
+    assert np.array_equal(skills.q, np.r_[pour.q[-1], q0[6:]])
+
+
+def test_push_slides_a_cube_with_a_held_stick_in_physics():
+    stick = SceneObject(
+        name="stick",
+        shape=BoxShape(size=(0.16, 0.025, 0.03)),
+        color=(0.6, 0.4, 0.2, 1),
+        mass=0.05,
+        pose=Pose(xyz=(0.22, -0.12, 0.765), rpy=(0, 0, np.pi / 2)),
+    )
+    scene = Scene(name="push", objects=(stick, cube("box", 0.15, 0.05, size=0.04, mass=0.03)))
+    skills = Skills(PlanningModel(scene), speed=0.75)
+    sim = Simulation(build_station(scene, StationConfig(render=False)))
+    pick = skills.pick("right", "stick", kinds=["top"], lift=0.08)
+    start, end = np.array([0.15, 0.0, 0.77]), np.array([0.15, 0.10, 0.77])
+    push = skills.push("right", start, end, ignore=["box"])
+    # the stick's leading end follows the straight line while pushing
+    held = skills.model.held["right"]
+    tip = np.array([0.08, 0.0, 0.0])
+    q_right = [np.r_[skills.q[:6], q6] for q6 in push.q]
+    tips = np.array([(skills.model.held_pose("right", q) @ tip) for q in q_right])
+    on_line = tips[np.abs(tips[:, 2] - 0.77) < 1e-4]
+    assert len(on_line) > 5 and np.allclose(on_line[:, [0, 2]], [0.15, 0.77], atol=1e-3)
+    assert on_line[:, 1].min() == pytest.approx(0.0, abs=1e-3)
+    assert on_line[:, 1].max() == pytest.approx(0.10, abs=1e-3)
+    assert held.name == "stick"
+    motion = skills.merge(None, pick.then(push))
+    for action in motion.actions():
+        sim.step(action)
+    box = sim.object_poses()["box"]
+    # the box's near face ends at the tip's last position (0.10): centre 2 cm further
+    assert box[1] == pytest.approx(0.12, abs=0.01) and box[0] == pytest.approx(0.15, abs=0.01)
+    assert sim.finger_contacts()["stick"] == {"right"}
+
+
+def test_stabilize_then_release_keeps_the_planning_world_consistent():
+    scene = Scene(name="steady", objects=(_bowl(-0.08, 0.0), cube("cube", 0.15, -0.05)))
+    skills = Skills(PlanningModel(scene), speed=0.75)
+    steady = skills.stabilize("left", "bowl", kinds=["rim"])
+    assert steady.opening[-1] == 0.0 and skills.model.held["left"].name == "bowl"
+    # the other arm can still plan (the steadied bowl does not count as touching the table)
+    skills.pick("right", "cube", kinds=["top"])
+    let_go = skills.release("left")
+    assert let_go.opening[-1] == 1.0 and "left" not in skills.model.held
+    bowl = skills.model.object_pose("bowl").translation()
+    assert np.allclose(bowl, [-0.08, 0.0, 0.75], atol=1e-6)
+
+
+@pytest.mark.slow
+def test_stabilized_bowl_stays_put_while_the_other_arm_fills_it():
+    shape = BowlShape(radius=0.09, base_radius=0.09, height=0.04, wall=0.012)
+    bowl = _bowl(-0.08, 0.0, shape)
+    scene = Scene(name="fill", objects=(bowl, cube("cube", 0.15, -0.05, size=0.03, mass=0.03)))
+    skills = Skills(PlanningModel(scene), speed=0.75, clearance=0.015)
+    sim = Simulation(build_station(scene, StationConfig(render=False)))
+    hold = skills.merge(skills.stabilize("left", "bowl", kinds=["rim"]), None)
+    away = 0.03 if skills.model.tcp_pose(skills.q, "left").translation()[0] < -0.08 else -0.03
+    goal = stack_target(
+        RigidTransform(bowl.pose.matrix()), shape, scene.object("cube").shape, offset_xy=(away, 0.0)
+    )
+    g = skills.model.embodiment.arm.gripper
+    fill = skills.pick("right", "cube", kinds=["top"]).then(
+        skills.place("right", goal, ignore=["bowl"], opening=float(g.opening(0.025)))
+    )
+    work = skills.merge(None, fill, ignore=["bowl"])
+    for action in hold.actions():
+        sim.step(action)
+    before = sim.object_poses()["bowl"][:3]
+    for action in work.actions():
+        sim.step(action)
+    poses = sim.object_poses()
+    assert np.linalg.norm(poses["bowl"][:3] - before) < 0.003
+    assert np.linalg.norm(poses["cube"][:2] - goal.translation()[:2]) < 0.015
+    assert sim.finger_contacts()["bowl"] == {"left"}
