@@ -515,7 +515,9 @@ def _calculate(otg: Ruckig, inp: InputParameter, n: int, what: str) -> Trajector
     traj = Trajectory(n)
     try:
         result = otg.calculate(inp, traj)
-    except RuntimeError as exc:  # ruckig raises on invalid input
+    except (RuntimeError, ValueError) as exc:
+        # ruckig raises on invalid input; a result code missing from its Python enum (e.g. -101
+        # on very long segments) surfaces as ValueError
         raise PlanningError("timing_failed", f"ruckig {what}: {exc}") from exc
     if result not in (Result.Working, Result.Finished):
         raise PlanningError("timing_failed", f"ruckig {what}: {result}")

@@ -73,9 +73,13 @@ class ActionInterpolator(LeafSystem):
     def _desired(self, context: Context, output: BasicVector, k: int) -> None:
         x = context.get_discrete_state(self._state).get_value()
         prev, curr, t0 = x[0:14], x[14:28], x[28]
-        s = np.clip((context.get_time() - t0) / self._period, 0.0, 1.0)
+        elapsed = context.get_time() - t0
+        s = np.clip(elapsed / self._period, 0.0, 1.0)
         target = prev + s * (curr - prev)
-        velocity = (curr - prev) / self._period if s < 1.0 else np.zeros(14)
+        # The segment's velocity holds on the closed period: the plant step that coincides with
+        # the next latch still reads this segment, and a zero there would brake the arm.
+        moving = elapsed <= self._period * (1.0 + 1e-9)
+        velocity = (curr - prev) / self._period if moving else np.zeros(14)
         sl = slice(7 * k, 7 * k + 7)
         q, v = target[sl].copy(), velocity[sl].copy()
         q[6] = self._gripper.finger_position(q[6])

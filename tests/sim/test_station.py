@@ -99,3 +99,16 @@ def test_config_errors_name_the_field():
     with pytest.raises(ValueError, match="WIDTHxHEIGHT"):
         parse_resolution("320by240")
     assert parse_resolution("640x480") == (640, 480)
+
+
+def test_target_velocity_holds_up_to_the_period_boundary(sim):
+    """At the instant of the next latch the plant still reads the finishing segment's velocity
+    (a zero there brakes a fast arm through the PD damping)."""
+    sim.reset()
+    st = sim.station
+    a = _target(st)
+    sim.step(a)  # now exactly at the end of the first segment, before the next latch
+    ctx = st.interpolator.GetMyContextFromRoot(sim.context)
+    desired = st.interpolator.GetOutputPort("left_desired_state").Eval(ctx)
+    home = st.embodiment.home_action()
+    np.testing.assert_allclose(desired[7:13], (a[:6] - home[:6]) * 15.0, rtol=1e-9)
