@@ -1,0 +1,468 @@
+"""exchange_mics: hand one microphone over in mid-air and swap both mics between their squares."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+
+import numpy as np
+from pydrake.all import RigidTransform, RotationMatrix
+
+from bicoord_drake.models.geometry import Pose, Primitive
+from bicoord_drake.models.objects import (
+    BoxShape,
+    CompoundShape,
+    CylinderShape,
+    SceneObject,
+    SphereShape,
+)
+from bicoord_drake.models.scene import TABLE_TOP, Scene
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.grasps import (
+    Grasp,
+    arm_base,
+    cylinder_grasps,
+    naturalness,
+    sphere_grasps,
+    symmetric_yaws,
+)
+from bicoord_drake.planning.ik import TcpTarget
+from bicoord_drake.planning.model import PlanningModel
+from bicoord_drake.planning.skills import MAX_GRASP_TRIES, ArmPlan, Motion, Skills
+from bicoord_drake.planning.timing import ARM_SLICES
+from bicoord_drake.stages import Stage
+from bicoord_drake.stages.predicates import (
+    Predicate,
+    all_of,
+    at_rest,
+    fraction_true,
+    held_by,
+    lifted,
+    on_table,
+    released,
+    upright,
+    within_xy,
+)
+from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.registry import register_task
+
+#: Microphone: a handle (radius, length) standing on the table and a ball head on top.
+HANDLE_RADIUS = 0.016
+HANDLE_LENGTH = 0.11
+HEAD_RADIUS = 0.026
+HEAD_Z = HANDLE_LENGTH + 0.014  # head centre above the mic's bottom (its frame origin)
+MIC_MASS = 0.06
+SQUARE = 0.10
+#: Where the squares' centres are drawn (x range, y range) per side.
+SQUARE_X = {"left": (-0.2, -0.15), "right": (0.2, 0.25)}
+SQUARE_Y = (-0.05, 0.0)
+#: Where R sets mic R down, and the mic's bottom centre at the mid-air handover.
+MIDDLE = (0.0, -0.12)
+MEET = (-0.02, 0.0, TABLE_TOP + 0.08)
+#: Where L waits with mic L before the handover (the "handover pose"), relative to MEET.
+STAGING_OFFSET = (-0.06, 0.0, 0.0)
+ON_SQUARE_TOL = 0.04
+COLORS = {
+    "black": (0.12, 0.12, 0.13, 1.0),
+    "silver": (0.72, 0.73, 0.75, 1.0),
+    "red": (0.8, 0.15, 0.15, 1.0),
+    "blue": (0.15, 0.3, 0.8, 1.0),
+    "gold": (0.85, 0.68, 0.2, 1.0),
+}
+SETTLE_STEPS = 3
+
+
+@register_task
+class ExchangeMics(Task):
+    """Swap two microphones between their squares, one of them passed from hand to hand.
+
+    Description: two microphones (a cylindrical handle with a ball head) stand upright on grey
+    10 cm squares, mic L on the left (x in [-0.2, -0.15]) and mic R on the right (x in
+    [0.2, 0.25]), y in [-0.05, 0]. Both arms pick their mic; the left raises mic L to the
+    handover pose while the right sets mic R down in the middle; the arms meet in mid-air and the
+    right grasps mic L's handle, closing before the left opens; the left then picks mic R from
+    the middle while the right retreats with mic L; finally each places its mic crosswise, on
+    the other square.
+
+    Randomization: both squares' centres (x, y within the ranges above); each mic's colour.
+
+    Stages: (1) both pick; (2) prepare the handover (mic R set down in the middle, mic L raised
+    to the handover pose); (3) hand over (mic L held by R only); (4) L picks mic R from the
+    middle, R holds mic L; (5) place crosswise (1.0: 0.5 per mic).
+
+    Success: mic R stands upright on the left square and mic L on the right square (centres
+    within 4 cm of the square centres, resting on the table), released and at rest.
+    """
+
+    name = "exchange_mics"
+    step_limit = 900
+    instructions_seen = (
+        "Swap the two microphones, handing the left one over to the right hand in the air.",
+        "Exchange the microphones between the two grey squares.",
+        "Pass the left microphone to the right hand and swap the mics' places.",
+        "Trade the positions of the two microphones using a mid-air handover.",
+        "Move each microphone onto the other grey square.",
+        "Swap the mics: the left one goes to the right square, the right one to the left square.",
+        "Hand the left mic to the right arm, then put both mics on the opposite squares.",
+    )
+    instructions_unseen = (
+        "Exchange the places of the two microphones standing on the grey pads.",
+        "Put the left microphone where the right one was and vice versa.",
+        "Switch the two mics around, passing one between the hands.",
+        "Cross the microphones over so each stands on the other square.",
+    )
+
+    # ---------------------------------------------------------------- scene
+    def sample_scene(self, seed: int) -> Scene:
+        rng = np.random.default_rng(seed)
+        squares = {
+            side: (
+                round(float(rng.uniform(*SQUARE_X[side])), 4),
+                round(float(rng.uniform(*SQUARE_Y)), 4),
+            )
+            for side in ("left", "right")
+        }
+        names = sorted(COLORS)
+        picked = [str(c) for c in rng.choice(names, size=2, replace=False)]
+        colors = dict(zip(("left", "right"), picked, strict=True))
+        objects: list[SceneObject] = []
+        for side, xy in squares.items():
+            objects.append(_square(f"square_{side}", xy))
+            objects.append(_mic(f"mic_{side}", xy, COLORS[colors[side]]))
+        return Scene(
+            name=self.name,
+            seed=seed,
+            objects=tuple(objects),
+            draws={
+                "square_left": list(squares["left"]),
+                "square_right": list(squares["right"]),
+                "color_left": colors["left"],
+                "color_right": colors["right"],
+            },
+        )
+
+    def object_count(self, scene: Scene) -> int:
+        return 4  # two mics and the two squares they are swapped between
+
+    # ---------------------------------------------------------------- stages
+    def stages(self, scene: Scene) -> list[Stage]:
+        sq_l, sq_r = scene.draws["square_left"], scene.draws["square_right"]
+        staging = np.asarray(MEET) + STAGING_OFFSET
+
+        def standing_on(mic: str, xy: Sequence[float]) -> Predicate:
+            return all_of(
+                within_xy(mic, xy, ON_SQUARE_TOL),
+                on_table(mic),
+                upright(mic),
+                released(mic),
+                at_rest(mic),
+            )
+
+        return [
+            Stage(
+                "both pick",
+                "pick mic L",
+                "pick mic R",
+                0.0,
+                all_of(lifted("mic_left", 0.05), lifted("mic_right", 0.05)),
+                "transient",
+            ),
+            Stage(
+                "prepare the handover",
+                "raise mic L to the handover pose",
+                "set mic R down in the middle",
+                0.0,
+                all_of(
+                    within_xy("mic_right", MIDDLE, 0.03),
+                    on_table("mic_right"),
+                    upright("mic_right"),
+                    not_touched_by("mic_right", "right"),
+                    held_by("mic_left", "left"),
+                    lifted("mic_left", 0.08, reference="table"),
+                    within_xy("mic_left", staging[:2], 0.08),
+                ),
+                "transient",
+            ),
+            Stage(
+                "hand over",
+                "release after R holds",
+                "grasp mic L",
+                0.0,
+                all_of(
+                    held_by("mic_left", "right"),
+                    not_touched_by("mic_left", "left"),
+                    lifted("mic_left", 0.08, reference="table"),
+                ),
+                "transient",
+            ),
+            Stage(
+                "pick the middle mic",
+                "pick mic R from the middle",
+                "retreat with mic L",
+                0.0,
+                all_of(
+                    held_by("mic_right", "left"),
+                    lifted("mic_right", 0.05),
+                    held_by("mic_left", "right"),
+                    lifted("mic_left", 0.05),
+                ),
+                "transient",
+            ),
+            Stage(
+                "place crosswise",
+                "place mic R on the left square",
+                "place mic L on the right square",
+                1.0,
+                fraction_true([standing_on("mic_right", sq_l), standing_on("mic_left", sq_r)]),
+                "persistent",
+            ),
+        ]
+
+    # ---------------------------------------------------------------- expert
+    def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
+        sq_l, sq_r = scene.draws["square_left"], scene.draws["square_right"]
+        skills = Skills(PlanningModel(scene))
+
+        def run(motion: Motion) -> Iterator[np.ndarray]:
+            yield from motion.actions()
+            poses = view.object_transforms()
+            skills.sync(skills.q, object_poses=poses)
+            _refresh_grasps(skills, poses)
+
+        # ---- stage 1: both pick their mic by the ball head, from above
+        left = _pick_mic(skills, "left", "mic_left", lift=0.12)
+        right = _pick_mic(skills, "right", "mic_right", lift=0.12)
+        yield from run(skills.merge(left, right))
+        # ---- stage 2: R sets mic R down in the middle while L raises mic L to the handover pose
+        right = skills.place("right", _standing(MIDDLE))
+        left = _carry_to(skills, "left", np.asarray(MEET) + STAGING_OFFSET)
+        yield from run(skills.merge(left, right))
+        # ---- stage 3: both arms arrive at once; R grasps the handle, then L lets go
+        yield from run(_handover(skills, "left", "right", "mic_left", np.asarray(MEET)))
+        # ---- stage 4: L picks mic R from the middle, R retreats with mic L toward its square
+        right = _carry_to(skills, "right", np.array([sq_r[0] - 0.05, sq_r[1], TABLE_TOP + 0.10]))
+        left = _pick_mic(skills, "left", "mic_right", lift=0.12)
+        yield from run(skills.merge(left, right))
+        # ---- stage 5: crosswise placement, both at once
+        right = skills.place("right", _standing(sq_r))
+        left = skills.place("left", _standing(sq_l))
+        yield from run(skills.merge(left, right))
+        left, right = skills.retreat("left"), skills.retreat("right")
+        yield from run(skills.merge(left, right))
+        final = skills.merge(skills.hold("left", SETTLE_STEPS), skills.hold("right", SETTLE_STEPS))
+        yield from final.actions()
+
+
+# -------------------------------------------------------------------- predicates
+def not_touched_by(obj: str, side: str) -> Predicate:
+    """No finger of `side` touches `obj`."""
+    return Predicate(lambda s: side not in s.touching(obj), f"not_touched_by({obj!r}, {side!r})")
+
+
+# -------------------------------------------------------------------- scene parts
+def _square(name: str, xy: Sequence[float]) -> SceneObject:
+    """A flat grey 10 cm square on the table: seen, never collided with."""
+    return SceneObject(
+        name=name,
+        shape=BoxShape(size=(SQUARE, SQUARE, 0.001)),
+        color=(0.55, 0.55, 0.57, 1.0),
+        fixed=True,
+        collide=False,
+        pose=Pose(xyz=(xy[0], xy[1], TABLE_TOP + 0.0005)),
+    )
+
+
+def mic_shape() -> CompoundShape:
+    """Handle cylinder and ball head; the frame is at the centre of the handle's bottom."""
+    return CompoundShape(
+        parts=(
+            Primitive(
+                kind="cylinder",
+                size=(HANDLE_RADIUS, HANDLE_LENGTH),
+                pose=Pose(xyz=(0.0, 0.0, HANDLE_LENGTH / 2)),
+            ),
+            Primitive(kind="sphere", size=(HEAD_RADIUS,), pose=Pose(xyz=(0.0, 0.0, HEAD_Z))),
+        )
+    )
+
+
+def _mic(name: str, xy: Sequence[float], color) -> SceneObject:
+    return SceneObject(
+        name=name,
+        shape=mic_shape(),
+        color=color,
+        mass=MIC_MASS,
+        pose=Pose(xyz=(xy[0], xy[1], TABLE_TOP)),
+    )
+
+
+def _standing(xy: Sequence[float]) -> RigidTransform:
+    """An upright mic standing at (x, y), 2 mm above the table."""
+    return RigidTransform([xy[0], xy[1], TABLE_TOP + 0.002])
+
+
+# -------------------------------------------------------------------- expert helpers
+def mic_grasps(skills: Skills, side: str, X_WO: RigidTransform, kind: str = "head") -> list[Grasp]:
+    """Grasps of a mic at `X_WO`, best first, with ``X_OG`` in the mic frame: ``head`` = top-down
+    across the ball head, ``handle`` = horizontal approach onto the handle's middle."""
+    gripper = skills.model.embodiment.arm.gripper
+    base = arm_base(skills.model.embodiment, side)
+    if kind == "head":
+        X_WP = X_WO @ RigidTransform([0.0, 0.0, HEAD_Z])
+        grasps = sphere_grasps(X_WP, SphereShape(radius=HEAD_RADIUS), gripper, base=base)
+    else:
+        X_WP = X_WO @ RigidTransform([0.0, 0.0, HANDLE_LENGTH / 2])
+        handle = CylinderShape(radius=HANDLE_RADIUS, length=HANDLE_LENGTH)
+        grasps = cylinder_grasps(X_WP, handle, gripper, base=base, kinds=("side",))
+    X_OW = X_WO.inverse()
+    return [Grasp(g.kind, g.X_WG, g.X_WPre, X_OW @ g.X_WG, g.width, g.score) for g in grasps]
+
+
+def _pick_mic(skills: Skills, side: str, name: str, *, lift: float = 0.10) -> ArmPlan:
+    """:meth:`Skills.pick` for a mic (``grasps.grasp_candidates`` has no compound shapes): top
+    down across the ball head, then lift."""
+    X_WO = skills.model.object_pose(name)
+    grasps = mic_grasps(skills, side, X_WO, "head")
+    reasons = []
+    for grasp in grasps[:MAX_GRASP_TRIES]:
+        try:
+            q_pre, q_grasp, q_lift = skills._grasp_keyframes(side, name, grasp, lift)
+        except PlanningError as err:
+            reasons.append(err.reason)
+            continue
+        saved = (skills.q.copy(), dict(skills.opening))
+        try:
+            approach = skills.move(side, q_pre, label="approach")
+            descend = skills.move(side, q_grasp, label="descend", ignore=[name], straight=True)
+            close = skills.grip(side, 0.0, label="close")
+            skills.model.attach(name, side, skills.q)
+            up = skills.move(side, q_lift, label="lift", ignore=[name], straight=True)
+        except PlanningError as err:
+            if side in skills.model.held:
+                skills.model.detach(side, X_WO=X_WO)
+            skills.q, skills.opening = saved
+            reasons.append(err.reason)
+            continue
+        plan = approach.then(descend, close, up)
+        plan.events.append(
+            (approach.num_steps + descend.num_steps + close.num_steps - 3, "attach", name)
+        )
+        plan.label = f"pick {name}"
+        return plan
+    raise PlanningError(
+        "pick_failed",
+        f"{side} cannot pick {name!r}: tried {len(reasons)} grasps ({', '.join(reasons)})",
+    )
+
+
+def _carry_to(skills: Skills, side: str, p_bottom: np.ndarray) -> ArmPlan:
+    """Carry the mic held by `side` (upright, same yaw) so that its bottom is at `p_bottom`."""
+    held = skills.model.held[side]
+    X_WO = skills.model.held_pose(side, skills.q)
+    R = X_WO.rotation().matrix()
+    yaw = float(np.arctan2(R[1, 0], R[0, 0]))
+    X_goal = RigidTransform(RotationMatrix.MakeZRotation(yaw), p_bottom)
+    X_GT = RigidTransform([skills.model.embodiment.arm.gripper.tcp_x, 0.0, 0.0])
+    X_WT = X_goal @ held.X_GO.inverse() @ X_GT
+    return skills.move_tcp(side, X_WT, label=f"carry {held.name}")
+
+
+def _handover(
+    skills: Skills,
+    giver: str,
+    receiver: str,
+    name: str,
+    p_meet: np.ndarray,
+    *,
+    clearance: float = 0.005,
+    retreat: float = 0.06,
+) -> Motion:
+    """:meth:`Skills.handover` for a mic held by its head: the receiver takes the handle from
+    the side, fingers across the giver's. Both arms arrive at the same control step (the
+    skill's rendezvous), the receiver closes, then the giver opens and backs off."""
+    held = skills.model.held[giver]
+    gripper = skills.model.embodiment.arm.gripper
+    X_GT = RigidTransform([gripper.tcp_x, 0.0, 0.0])
+    X_OT = held.X_GO.inverse() @ X_GT
+    base_g = arm_base(skills.model.embodiment, giver)
+    closed = float(np.clip(gripper.opening(HEAD_RADIUS), 0.0, 1.0))
+    with skills._transaction():
+        skills.model.set_gripper(giver, closed)
+        try:
+            metas = []
+            for yaw in symmetric_yaws(CylinderShape(radius=1.0, length=1.0), n_round=12):
+                X_WO = RigidTransform(RotationMatrix.MakeZRotation(yaw), p_meet)
+                X_WTg = X_WO @ X_OT
+                metas.append((naturalness(X_WTg, base_g), X_WO, X_WTg))
+            metas.sort(key=lambda m: -m[0])
+            found, reasons = None, []
+            for _, X_WO, X_WTg in metas:
+                Rg = X_WTg.rotation().matrix()
+                for grasp in mic_grasps(skills, receiver, X_WO, "handle"):
+                    Rr = grasp.X_WG.rotation().matrix()
+                    if abs(Rr[:, 1] @ Rg[:, 1]) > 0.3:
+                        continue  # fingers must cross the giver's
+                    X_pre = grasp.X_WPre
+                    try:
+                        q_meet = skills.ik.solve(
+                            {giver: TcpTarget(X_WTg), receiver: TcpTarget(grasp.X_WG)},
+                            clearance=clearance,
+                            env_clearance=skills.env_clearance,
+                            seed=skills.q,
+                            restarts=4,
+                        )
+                        q_pre = skills.ik.solve_single(
+                            receiver,
+                            TcpTarget(X_pre),
+                            q_meet[ARM_SLICES[giver]],
+                            seed=q_meet,
+                            clearance=clearance,
+                            env_clearance=skills.env_clearance,
+                            restarts=4,
+                        )
+                    except PlanningError as err:
+                        reasons.append(err.reason)
+                        continue
+                    skills.model.set_padding(clearance * 0.8, 0.0)
+                    if not skills._edge_free(q_pre, q_meet):
+                        reasons.append("approach_in_collision")
+                        continue
+                    found = (q_meet, q_pre)
+                    break
+                if found:
+                    break
+            if found is None:
+                raise PlanningError(
+                    "handover_failed",
+                    f"no meeting for {name!r} at {np.round(p_meet, 3)} "
+                    f"({', '.join(sorted(set(reasons))) or 'no crossing grasp'})",
+                )
+            q_meet, q_pre = found
+            motion = skills._meet_motion(giver, receiver, q_meet, q_pre, clearance)
+        finally:
+            skills.model.set_gripper(giver, skills.model.embodiment.home_opening)
+        X_WO = skills.model.held_pose(giver, q_meet)
+        skills.q = q_meet.copy()
+        close = skills.grip(receiver, 0.0, label="receive")
+        skills.model.detach(giver, X_WO=X_WO)
+        skills.model.attach(name, receiver, skills.q, X_WO)
+        opened = skills.grip(giver, 1.0, label="let go")
+        X = skills.model.tcp_pose(skills.q, giver)
+        X_back = RigidTransform(X.rotation(), X.translation() - retreat * X.rotation().col(0))
+        back = skills.move_tcp(
+            giver, X_back, label="back off", ignore=[name], straight=True, clearance=clearance
+        )
+        rest = skills._sequence([{receiver: close}, {giver: opened}, {giver: back}], motion)
+        i_receive = motion.num_steps + close.num_steps - 2
+        i_release = i_receive + opened.num_steps - 1
+        rest.events += [(i_receive, receiver, "attach", name), (i_release, giver, "detach", name)]
+        rest.events.sort()
+        rest.label = f"handover {name} {giver}->{receiver}"
+        rest.info.update(rendezvous=motion.info.get("rendezvous"), meet_index=motion.num_steps - 1)
+        return rest
+
+
+def _refresh_grasps(skills: Skills, poses: dict) -> None:
+    """Re-measure each held mic's pose in its gripper (grasps settle by a few mm)."""
+    for side, held in list(skills.model.held.items()):
+        skills.model.detach(side, X_WO=poses[held.name])
+        skills.model.attach(held.name, side, skills.q, X_WO=poses[held.name])
