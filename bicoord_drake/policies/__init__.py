@@ -1,0 +1,152 @@
+"""Policies: what maps an observation to the next action, and how one is loaded.
+
+A policy is any object with ``act(obs) -> action`` and, optionally, ``reset(instruction)``
+(called at the start of every rollout) and ``bind(env)`` (called after ``env.reset()``, before
+``reset``; a *privileged* hook the built-ins use to read the demonstration or the simulator -
+a learned policy should not need it). Observations and actions are those of
+:mod:`bicoord_drake.env`.
+
+Load one with :func:`load_policy`:
+
+- a built-in: ``"replay"`` (the recorded actions of the demonstration the environment was reset
+  from), ``"expert"`` (the task's planner, in closed loop), ``"noop"`` (hold the action in
+  effect);
+- ``"package.module:name"``: a class (instantiated with the keyword arguments), a zero-argument
+  factory (called), an object with ``act`` (used as is) or any other callable (used as
+  ``act(obs)``, with a no-op ``reset``).
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import re
+from collections.abc import Callable
+from typing import Any, Protocol, runtime_checkable
+
+from bicoord_drake.policies.builtin import ExpertPolicy, NoopPolicy, ReplayPolicy
+
+#: Built-in policies by name.
+BUILTINS: dict[str, type] = {"replay": ReplayPolicy, "expert": ExpertPolicy, "noop": NoopPolicy}
+_SPEC = re.compile(r"^[A-Za-z_][\w.]*:[A-Za-z_][\w.]*$")
+
+
+@runtime_checkable
+class Policy(Protocol):
+    """The policy interface (see the module docstring)."""
+
+    def reset(self, instruction: str) -> None: ...
+
+    def act(self, obs: dict[str, Any]) -> Any: ...
+
+
+class PolicyLoadError(ValueError):
+    """A policy spec that cannot be imported or does not give a policy."""
+
+
+class FunctionPolicy:
+    """A plain callable used as ``act(obs)``; ``reset`` does nothing."""
+
+    def __init__(self, fn: Callable[[dict[str, Any]], Any]) -> None:
+        self.fn = fn
+
+    def reset(self, instruction: str) -> None:
+        pass
+
+    def act(self, obs: dict[str, Any]) -> Any:
+        return self.fn(obs)
+
+    def __repr__(self) -> str:
+        return f"FunctionPolicy({getattr(self.fn, '__qualname__', self.fn)!r})"
+
+
+def load_policy(spec: str, **kwargs: Any) -> Any:
+    """A policy from a built-in name or ``package.module:name`` (see the module docstring).
+
+    Raises :class:`PolicyLoadError` naming the problem (bad spec, module not importable, missing
+    attribute, not a policy, constructor failure).
+    """
+    spec = str(spec).strip()
+    if spec in BUILTINS:
+        return BUILTINS[spec](**kwargs)
+    if not _SPEC.match(spec):
+        raise PolicyLoadError(
+            f"policy spec {spec!r} must be a built-in ({', '.join(BUILTINS)}) or "
+            "'package.module:name'"
+        )
+    module_name, attr = spec.split(":")
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:  # any import-time failure of user code is a load error
+        raise PolicyLoadError(
+            f"policy {spec!r}: cannot import module {module_name!r} ({type(exc).__name__}: {exc})"
+        ) from None
+    obj: Any = module
+    for part in attr.split("."):
+        if not hasattr(obj, part):
+            raise PolicyLoadError(
+                f"policy {spec!r}: {getattr(obj, '__name__', obj)!r} has no attribute {part!r}"
+            )
+        obj = getattr(obj, part)
+    return _as_policy(obj, spec, kwargs)
+
+
+def _as_policy(obj: Any, spec: str, kwargs: dict[str, Any]) -> Any:
+    if inspect.isclass(obj) or (callable(obj) and not hasattr(obj, "act") and _no_args(obj)):
+        try:
+            obj = obj(**kwargs)
+        except Exception as exc:
+            raise PolicyLoadError(
+                f"policy {spec!r}: constructing it failed ({type(exc).__name__}: {exc})"
+            ) from None
+    elif kwargs:
+        raise PolicyLoadError(f"policy {spec!r} takes no arguments (it is not a class)")
+    if hasattr(obj, "act"):
+        if not callable(obj.act):
+            raise PolicyLoadError(f"policy {spec!r}: its 'act' is not callable")
+        return obj
+    if callable(obj):
+        return FunctionPolicy(obj)
+    raise PolicyLoadError(
+        f"policy {spec!r} is a {type(obj).__name__}, not a class, a callable or an object "
+        "with act(obs)"
+    )
+
+
+def _no_args(fn: Callable) -> bool:
+    """Whether `fn` can be called without arguments (a factory rather than act)."""
+    try:
+        params = inspect.signature(fn).parameters.values()
+    except (TypeError, ValueError):
+        return False
+    return all(
+        p.default is not p.empty or p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD) for p in params
+    )
+
+
+def reset_policy(policy: Any, instruction: str) -> None:
+    """Call the policy's ``reset(instruction)`` if it has one."""
+    reset = getattr(policy, "reset", None)
+    if callable(reset):
+        reset(instruction)
+
+
+def bind_policy(policy: Any, env: Any) -> None:
+    """Call the policy's privileged ``bind(env)`` hook if it has one."""
+    bind = getattr(policy, "bind", None)
+    if callable(bind):
+        bind(env)
+
+
+__all__ = [
+    "BUILTINS",
+    "ExpertPolicy",
+    "FunctionPolicy",
+    "NoopPolicy",
+    "Policy",
+    "PolicyLoadError",
+    "ReplayPolicy",
+    "bind_policy",
+    "load_policy",
+    "reset_policy",
+]

@@ -1,0 +1,73 @@
+"""Policies for the tests, loaded by spec (``tests.policies.dummy:<name>``)."""
+
+import numpy as np
+
+
+class Hold:
+    """Holds the first observed joint state; remembers its instructions."""
+
+    def __init__(self, scale: float = 1.0):
+        self.scale = scale
+        self.instructions = []
+        self.target = None
+
+    def reset(self, instruction):
+        self.instructions.append(instruction)
+        self.target = None
+
+    def act(self, obs):
+        if self.target is None:
+            self.target = np.asarray(obs["joint_state"], dtype=float)
+        return self.target
+
+
+class Raises:
+    """Raises on its third action."""
+
+    def reset(self, instruction):
+        self.calls = 0
+
+    def act(self, obs):
+        self.calls += 1
+        if self.calls == 3:
+            raise RuntimeError("policy bug on purpose")
+        return obs["joint_state"]
+
+
+class ReturnsNan:
+    def reset(self, instruction):
+        pass
+
+    def act(self, obs):
+        a = np.array(obs["joint_state"], dtype=float)
+        a[4] = np.nan
+        return a
+
+
+class WrongShape:
+    def reset(self, instruction):
+        pass
+
+    def act(self, obs):
+        return np.zeros(13)
+
+
+def act_function(obs):
+    """A bare function policy."""
+    return obs["joint_state"]
+
+
+def make_hold():
+    """A zero-argument factory."""
+    return Hold(scale=2.0)
+
+
+class BrokenConstructor:
+    def __init__(self):
+        raise OSError("weights not found")
+
+    def act(self, obs):
+        return obs["joint_state"]
+
+
+NOT_A_POLICY = 42

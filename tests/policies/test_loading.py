@@ -1,0 +1,62 @@
+"""load_policy: built-ins, module:name specs, and clear errors for bad specs."""
+
+import numpy as np
+import pytest
+
+from bicoord_drake.policies import (
+    ExpertPolicy,
+    FunctionPolicy,
+    NoopPolicy,
+    PolicyLoadError,
+    ReplayPolicy,
+    load_policy,
+)
+from tests.policies import dummy
+
+
+@pytest.mark.parametrize(
+    "spec,cls", [("replay", ReplayPolicy), ("expert", ExpertPolicy), ("noop", NoopPolicy)]
+)
+def test_builtins(spec, cls):
+    assert isinstance(load_policy(spec), cls)
+
+
+def test_class_is_instantiated_with_kwargs():
+    policy = load_policy("tests.policies.dummy:Hold", scale=3.0)
+    assert isinstance(policy, dummy.Hold) and policy.scale == 3.0
+
+
+def test_function_becomes_act_and_factory_is_called():
+    fn = load_policy("tests.policies.dummy:act_function")
+    assert isinstance(fn, FunctionPolicy)
+    fn.reset("anything")
+    obs = {"joint_state": np.arange(14.0)}
+    assert np.array_equal(fn.act(obs), obs["joint_state"])
+    made = load_policy("tests.policies.dummy:make_hold")
+    assert isinstance(made, dummy.Hold) and made.scale == 2.0
+
+
+@pytest.mark.parametrize(
+    "spec,words",
+    [
+        ("no_such_pkg.mod:Policy", ["cannot import module", "no_such_pkg"]),
+        ("tests.policies.dummy:Missing", ["has no attribute", "Missing"]),
+        ("tests.policies.dummy:NOT_A_POLICY", ["int", "not a class"]),
+        ("tests.policies.dummy:BrokenConstructor", ["constructing", "weights not found"]),
+        ("just words", ["must be a built-in", "package.module:name"]),
+        ("module_only", ["must be a built-in"]),
+    ],
+)
+def test_bad_specs_name_the_problem(spec, words):
+    with pytest.raises(PolicyLoadError) as err:
+        load_policy(spec)
+    for word in words:
+        assert word in str(err.value)
+
+
+def test_noop_unbound_holds_the_first_joint_state():
+    policy = NoopPolicy()
+    policy.reset("x")
+    first = policy.act({"joint_state": np.ones(14)})
+    again = policy.act({"joint_state": np.zeros(14)})
+    assert np.array_equal(first, np.ones(14)) and np.array_equal(again, np.ones(14))
