@@ -1,12 +1,34 @@
 """bicoord-drake: the BiCoord bimanual manipulation benchmark on Drake.
 
+Public API::
+
+    from bicoord_drake import list_tasks, make_env, generate, evaluate, metrics
+
 Subpackages: ``models`` (robot, objects, scenes), ``sim`` (station, cameras, stepping),
-``planning`` (IK, motion, timing, grasps, skills), ``metrics`` (coordination and evaluation
-metrics; no Drake), ``data`` (episode files and readers).
+``planning`` (IK, motion, timing, grasps, skills), ``tasks``, ``stages``, ``metrics``
+(coordination and evaluation metrics; no Drake), ``data`` (episode files and readers),
+``runner`` (generation and evaluation). Drake-dependent names load on first use, so
+``import bicoord_drake.metrics`` stays light.
 """
+
+from importlib import import_module
 
 from bicoord_drake import metrics
 
 __version__ = "0.1.0"
 
-__all__ = ["metrics", "__version__"]
+_LAZY = {
+    "list_tasks": "bicoord_drake.tasks",
+    "get_task": "bicoord_drake.tasks",
+    "make_env": "bicoord_drake.env",
+    "generate": "bicoord_drake.runner.generate",
+    "evaluate": "bicoord_drake.runner.evaluate",
+}
+
+__all__ = ["metrics", "__version__", *_LAZY]
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        return getattr(import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'bicoord_drake' has no attribute {name!r}")

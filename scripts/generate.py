@@ -60,11 +60,12 @@ def main(argv: list[str] | None = None) -> int:
 
     from pydantic import ValidationError
 
-    # Drake logs solver fallbacks and checker setup at INFO/WARNING; the manifest has what matters.
-    logging.getLogger("drake").setLevel(logging.DEBUG if args.verbose else logging.ERROR)
-
     from bicoord_drake.runner.generate import GenerateConfig, format_failure, generate
     from bicoord_drake.tasks import list_tasks
+
+    # Drake logs solver fallbacks and checker setup at INFO/WARNING; the manifest has what
+    # matters. Set after pydrake's import, which resets the level.
+    logging.getLogger("drake").setLevel(logging.DEBUG if args.verbose else logging.ERROR)
 
     if args.task not in list_tasks():
         print(
