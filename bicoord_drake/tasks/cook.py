@@ -2,6 +2,7 @@
 
 Work in progress: not listed in TASK_MODULES until its expert verifies in physics (state and
 measurements in benchmarks/bench_task_cook.md).
+"""
 
 from __future__ import annotations
 
