@@ -360,16 +360,37 @@ class Skills:
         )
 
     # ------------------------------------------------------------------ manipulation
+    def refresh_grasps(self, object_poses: dict[str, RigidTransform]) -> None:
+        """Re-measure each held object's pose in its gripper from measured poses (a grasp
+        settles by a few mm when the fingers close), so later placements aim right."""
+        for side, held in list(self.model.held.items()):
+            X_WO = object_poses[held.name]
+            self.model.detach(side, X_WO=X_WO)
+            self.model.attach(held.name, side, self.q, X_WO=X_WO)
+
     def pick(
-        self, side: str, name: str, *, lift: float = 0.10, kinds: Sequence[str] | None = None
+        self,
+        side: str,
+        name: str,
+        *,
+        lift: float = 0.10,
+        kinds: Sequence[str] | None = None,
+        grasps: Sequence[Grasp] | None = None,
     ) -> ArmPlan:
-        """Approach, grasp and lift object `name` with `side`; it is attached afterwards."""
-        obj = self.model.object(name)
+        """Approach, grasp and lift object `name` with `side`; it is attached afterwards.
+
+        `grasps` (best first) replaces the generated candidates, e.g. for one part of a
+        compound object."""
         X_WO = self.model.object_pose(name)
-        base = arm_base(self.model.embodiment, side)
-        grasps = grasp_candidates(
-            obj, self.model.embodiment.arm.gripper, X_WO=X_WO, base=base, kinds=kinds
-        )
+        if grasps is None:
+            base = arm_base(self.model.embodiment, side)
+            grasps = grasp_candidates(
+                self.model.object(name),
+                self.model.embodiment.arm.gripper,
+                X_WO=X_WO,
+                base=base,
+                kinds=kinds,
+            )
         reasons = []
         for grasp in grasps[:MAX_GRASP_TRIES]:
             try:

@@ -234,7 +234,7 @@ class Cook(Task):
             yield from motion.actions()
             poses = view.object_transforms()
             skills.sync(skills.q, object_poses=poses)
-            _refresh_grasps(skills, poses)
+            skills.refresh_grasps(poses)
             _park(skills, in_pan)
 
         # ---- stage 1: left picks the far roll, right lifts the skillet by its rim
@@ -312,13 +312,6 @@ class _Shaken:
 
 
 # -------------------------------------------------------------------- expert helpers
-def _refresh_grasps(skills: Skills, poses: dict) -> None:
-    """Re-measure each held object's pose in its gripper (grasps settle by a few mm)."""
-    for side, held in list(skills.model.held.items()):
-        skills.model.detach(side, X_WO=poses[held.name])
-        skills.model.attach(held.name, side, skills.q, X_WO=poses[held.name])
-
-
 def _park(skills: Skills, names: list[str]) -> None:
     """Move rolls lying in the held skillet out of the planning model's way.
 

@@ -27,7 +27,7 @@ from bicoord_drake.planning.grasps import (
 )
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.skills import MAX_GRASP_TRIES, ArmPlan, Motion, Skills
+from bicoord_drake.planning.skills import ArmPlan, Motion, Skills
 from bicoord_drake.planning.timing import ARM_SLICES
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
@@ -226,7 +226,7 @@ class ExchangeMics(Task):
             yield from motion.actions()
             poses = view.object_transforms()
             skills.sync(skills.q, object_poses=poses)
-            _refresh_grasps(skills, poses)
+            skills.refresh_grasps(poses)
 
         # ---- stage 1: both pick their mic by the ball head, from above
         left = _pick_mic(skills, "left", "mic_left", lift=0.12)
@@ -318,40 +318,10 @@ def mic_grasps(skills: Skills, side: str, X_WO: RigidTransform, kind: str = "hea
 
 
 def _pick_mic(skills: Skills, side: str, name: str, *, lift: float = 0.10) -> ArmPlan:
-    """:meth:`Skills.pick` for a mic (``grasps.grasp_candidates`` has no compound shapes): top
-    down across the ball head, then lift."""
-    X_WO = skills.model.object_pose(name)
-    grasps = mic_grasps(skills, side, X_WO, "head")
-    reasons = []
-    for grasp in grasps[:MAX_GRASP_TRIES]:
-        try:
-            q_pre, q_grasp, q_lift = skills._grasp_keyframes(side, name, grasp, lift)
-        except PlanningError as err:
-            reasons.append(err.reason)
-            continue
-        saved = (skills.q.copy(), dict(skills.opening))
-        try:
-            approach = skills.move(side, q_pre, label="approach")
-            descend = skills.move(side, q_grasp, label="descend", ignore=[name], straight=True)
-            close = skills.grip(side, 0.0, label="close")
-            skills.model.attach(name, side, skills.q)
-            up = skills.move(side, q_lift, label="lift", ignore=[name], straight=True)
-        except PlanningError as err:
-            if side in skills.model.held:
-                skills.model.detach(side, X_WO=X_WO)
-            skills.q, skills.opening = saved
-            reasons.append(err.reason)
-            continue
-        plan = approach.then(descend, close, up)
-        plan.events.append(
-            (approach.num_steps + descend.num_steps + close.num_steps - 3, "attach", name)
-        )
-        plan.label = f"pick {name}"
-        return plan
-    raise PlanningError(
-        "pick_failed",
-        f"{side} cannot pick {name!r}: tried {len(reasons)} grasps ({', '.join(reasons)})",
-    )
+    """Pick a mic top-down across its ball head (``grasps.grasp_candidates`` has no compound
+    shapes, so the head's grasps are made here), then lift."""
+    grasps = mic_grasps(skills, side, skills.model.object_pose(name), "head")
+    return skills.pick(side, name, lift=lift, grasps=grasps)
 
 
 def _carry_to(skills: Skills, side: str, p_bottom: np.ndarray) -> ArmPlan:
@@ -459,10 +429,3 @@ def _handover(
         rest.label = f"handover {name} {giver}->{receiver}"
         rest.info.update(rendezvous=motion.info.get("rendezvous"), meet_index=motion.num_steps - 1)
         return rest
-
-
-def _refresh_grasps(skills: Skills, poses: dict) -> None:
-    """Re-measure each held mic's pose in its gripper (grasps settle by a few mm)."""
-    for side, held in list(skills.model.held.items()):
-        skills.model.detach(side, X_WO=poses[held.name])
-        skills.model.attach(held.name, side, skills.q, X_WO=poses[held.name])

@@ -156,7 +156,7 @@ class Jigsaw(Task):
             yield from motion.actions()
             poses = view.object_transforms()
             skills.sync(skills.q, object_poses=poses)
-            _refresh_grasps(skills, poses)
+            skills.refresh_grasps(poses)
 
         def goal(xy):
             from pydrake.all import RigidTransform
@@ -185,13 +185,6 @@ class Jigsaw(Task):
         yield from run(skills.merge(left, right))
         final = skills.merge(skills.hold("left", SETTLE_STEPS), skills.hold("right", SETTLE_STEPS))
         yield from final.actions()
-
-
-def _refresh_grasps(skills: Skills, poses: dict) -> None:
-    """Re-measure each held cube's pose in its gripper (grasps settle by a few mm)."""
-    for side, held in list(skills.model.held.items()):
-        skills.model.detach(side, X_WO=poses[held.name])
-        skills.model.attach(held.name, side, skills.q, X_WO=poses[held.name])
 
 
 def _marker(name: str, xy: tuple[float, float]) -> SceneObject:
