@@ -1,0 +1,468 @@
+"""handover_block_with_bowls: pour a cube from one held bowl into the other, then set it down."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+from pydrake.all import RigidTransform, RotationMatrix
+
+from bicoord_drake.models.geometry import Pose, Primitive
+from bicoord_drake.models.objects import BowlShape, BoxShape, CompoundShape, SceneObject
+from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.grasps import (
+    Grasp,
+    GraspParams,
+    arm_base,
+    bowl_rim_grasps,
+    table_target,
+)
+from bicoord_drake.planning.model import PlanningModel
+from bicoord_drake.planning.skills import MAX_GRASP_TRIES, ArmPlan, Motion, Skills
+from bicoord_drake.stages import Stage
+from bicoord_drake.stages.predicates import (
+    all_of,
+    at_rest,
+    inside,
+    lifted,
+    released,
+    within_xy,
+)
+from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.registry import register_task
+
+# ---- the pouring bowl (left): a straight 12 mm wall the pads grip flat, with a spout - a gap
+# in the wall closed only by a low lip - on its +x side, so the cube tips out at ~60 deg of
+# tilt (a loose cube in a closed straight-walled bowl needs ~130 deg, out of reach).
+POUR_RADIUS = 0.065
+POUR_HEIGHT = 0.04
+POUR_WALL = 0.012
+POUR_BASE = 0.006
+POUR_LIP = 0.004  # lip height above the base's top face (below the cube's half side)
+POUR_SEGMENTS = 16
+SPOUT_HALF_ANGLE = np.radians(35)  # wall segments whose centre lies within this are the spout
+#: Rim azimuths (bowl frame, spout at 0) where the left arm may grip the pouring bowl.
+GRIP_AZIMUTH = (np.radians(-165), np.radians(-60))
+GRIP_MARGIN = 0.004  # pad-to-wall gap per side (m) of the narrowed jaw that picks it
+#: The spout lip's outer top edge in the bowl frame: the pivot of the pour and the exit point.
+LIP_POINT = np.array([POUR_RADIUS, 0.0, POUR_BASE + POUR_LIP])
+# ---- the catching bowl (right): the straight 12 mm-wall bowl of the toss trials.
+CATCH_BOWL = BowlShape(radius=0.075, base_radius=0.075, height=0.05, wall=0.012)
+CUBE = 0.02
+TARGET = 0.10  # side of the grey target square
+# ---- where the pour happens (world): the lip above the catching bowl.
+LIP_AT = np.array([0.0, -0.05, TABLE_TOP + 0.20])
+#: The pour goes toward the robot (-y): the left gripper then ends up pointing forward.
+POUR_DIRECTION = np.array([0.0, -1.0, 0.0])
+POUR_YAW = -np.pi / 2  # bowl yaw that turns the spout (bowl +x) toward POUR_DIRECTION
+#: The catching bowl's axis relative to the lip: past it (under the fall) and toward +x, so
+#: that the right gripper stays clear of the left wrist, which ends above the fall.
+CATCH_OFFSET = np.array([0.03, -0.03, 0.0])
+CATCH_DROP = 0.07  # the catching bowl's rim this far below the lip (6 cm under the bottom)
+POUR_ANGLE = np.radians(80)
+POUR_HOLD = 10
+SPEED = 0.8
+#: Inter-arm clearance (m) the planner keeps: the two held bowls work 3-4 cm apart.
+CLEARANCE = 0.02
+#: Alignment the expert requires (measured) before it tilts.
+ALIGN_XY = 0.05  # lip within this of the catching bowl's axis (xy)
+ALIGN_Z = (0.03, 0.10)  # lip this high above the catching bowl's rim
+ALIGN_TILT = np.radians(8)  # both bowls this level
+SETTLE_STEPS = 6
+BOWL_COLORS = {
+    "white": (0.92, 0.92, 0.88, 1.0),
+    "blue": (0.35, 0.55, 0.85, 1.0),
+    "green": (0.45, 0.72, 0.5, 1.0),
+    "yellow": (0.93, 0.82, 0.4, 1.0),
+}
+
+
+@register_task
+class HandoverBlockWithBowls(Task):
+    """Pour a red cube from the left bowl into the right one, then set that bowl on the target.
+
+    Description: two bowls stand on the table, one on each side; a red 2 cm cube lies in the
+    left one; a grey target square is marked on the right. Both arms lift their bowls by the
+    rim and meet above the middle of the table: the right arm holds its bowl level just in
+    front of (toward the robot) and below the left bowl's spout; only once the measured rims
+    are aligned does the left arm tilt its bowl 80 deg about the spout lip, toward the robot,
+    so the cube tips over the lip and drops into the right bowl; then the left arm puts its
+    empty bowl back and retreats while the right arm places its bowl, with the cube in it, on
+    the grey square. The left bowl has a straight 12 mm wall (held level by the rim) with a
+    spout - a gap in the wall closed by a 4 mm lip - where it pours.
+
+    Randomization: both bowls' positions (x in [-0.2, -0.15] and [0.15, 0.2], y in
+    [-0.15, -0.05]), the left bowl's yaw (spout toward the robot, +-0.25 rad), the cube's
+    offset in the left bowl (+-1.5 cm) and yaw, the target position (x in [0.15, 0.2], y in
+    [-0.05, 0.05]), the bowls' colour.
+
+    Stages: (1) both bowls lifted, cube still in the left one; (2) the cube poured into the
+    right bowl; (3) the right bowl set on the target, the left bowl put back.
+
+    Success: the right bowl within 2.5 cm (xy) of the target centre with the cube inside,
+    released (both grippers open, no finger touching either bowl), bowl and cube at rest.
+    """
+
+    name = "handover_block_with_bowls"
+    step_limit = 350
+    instructions_seen = (
+        "Pour the red block from the left bowl into the right bowl, then put that bowl on the "
+        "grey square.",
+        "Lift both bowls, tip the block into the right bowl and set it down on the grey target.",
+        "Move the red cube into the other bowl by pouring, then place the bowl on the grey mark.",
+        "Transfer the block between the bowls and put the bowl holding it on the grey square.",
+        "Pick up both bowls, pour the cube across, and leave the full bowl on the target.",
+        "Tip the red block out of the left bowl into the right one, then place it on the grey "
+        "patch.",
+        "Hand the cube over from bowl to bowl and set the receiving bowl on the grey square.",
+    )
+    instructions_unseen = (
+        "Using both bowls, pass the red block to the right bowl and put it on the grey target.",
+        "Raise the two bowls, line them up, pour the block over, then set the bowl on the square.",
+        "Get the red cube into the right-hand bowl without touching it, then park that bowl on "
+        "the grey square.",
+        "Pour the little red block across into the second bowl and place the bowl on the marker.",
+    )
+
+    # ---------------------------------------------------------------- scene
+    def sample_scene(self, seed: int) -> Scene:
+        rng = np.random.default_rng(seed)
+        left_xy = [float(rng.uniform(-0.2, -0.15)), float(rng.uniform(-0.15, -0.05))]
+        right_xy = [float(rng.uniform(0.15, 0.2)), float(rng.uniform(-0.15, -0.05))]
+        target_xy = [float(rng.uniform(0.15, 0.2)), float(rng.uniform(-0.05, 0.05))]
+        left_yaw = POUR_YAW + float(rng.uniform(-0.25, 0.25))
+        cube_offset = [float(v) for v in rng.uniform(-0.015, 0.015, size=2)]
+        cube_yaw = float(rng.uniform(-np.pi / 4, np.pi / 4))
+        color_name = str(rng.choice(sorted(BOWL_COLORS)))
+        color = BOWL_COLORS[color_name]
+        pour_bowl = SceneObject(
+            name="pour_bowl",
+            shape=pour_bowl_shape(),
+            color=color,
+            mass=0.1,
+            pose=Pose(xyz=(*left_xy, TABLE_TOP), rpy=(0.0, 0.0, left_yaw)),
+        )
+        catch_bowl = SceneObject(
+            name="catch_bowl",
+            shape=CATCH_BOWL,
+            color=color,
+            mass=0.1,
+            pose=Pose(xyz=(*right_xy, TABLE_TOP)),
+        )
+        block = cube(
+            "cube",
+            left_xy[0] + cube_offset[0],
+            left_xy[1] + cube_offset[1],
+            size=CUBE,
+            color=(0.85, 0.15, 0.15, 1.0),
+            mass=0.015,
+            yaw=cube_yaw,
+        )
+        block = block.model_copy(
+            update={
+                "pose": Pose(
+                    xyz=(*block.pose.xyz[:2], TABLE_TOP + POUR_BASE + CUBE / 2 + 0.0005),
+                    rpy=block.pose.rpy,
+                )
+            }
+        )
+        target = SceneObject(
+            name="target",
+            shape=BoxShape(size=(TARGET, TARGET, 0.001)),
+            color=(0.55, 0.55, 0.55, 1.0),
+            fixed=True,
+            collide=False,
+            pose=Pose(xyz=(*target_xy, TABLE_TOP + 0.0005)),
+        )
+        return Scene(
+            name=self.name,
+            seed=seed,
+            objects=(pour_bowl, catch_bowl, block, target),
+            draws={
+                "left_bowl_xy": left_xy,
+                "right_bowl_xy": right_xy,
+                "target_xy": target_xy,
+                "left_bowl_yaw": left_yaw,
+                "cube_offset": cube_offset,
+                "cube_yaw": cube_yaw,
+                "bowl_color": color_name,
+            },
+        )
+
+    def object_count(self, scene: Scene) -> int:
+        return 4  # two bowls, the cube, the target
+
+    # ---------------------------------------------------------------- stages
+    def stages(self, scene: Scene) -> list[Stage]:
+        target_xy = scene.draws["target_xy"]
+        return [
+            Stage(
+                "lift both bowls",
+                "lift the bowl with the cube",
+                "lift the empty bowl",
+                0.0,
+                all_of(
+                    lifted("pour_bowl", 0.05),
+                    lifted("catch_bowl", 0.05),
+                    inside("cube", "pour_bowl"),
+                ),
+                "transient",
+            ),
+            Stage(
+                "pour the cube across",
+                "align the spout above the right bowl, tilt to pour",
+                "hold the bowl under the spout, catch",
+                0.5,
+                inside("cube", "catch_bowl"),
+                "persistent",
+            ),
+            Stage(
+                "set the bowl on the target",
+                "put the empty bowl back, retreat",
+                "place the bowl on the grey square",
+                0.5,
+                all_of(
+                    within_xy("catch_bowl", target_xy, 0.025),
+                    inside("cube", "catch_bowl"),
+                    released("catch_bowl"),
+                    released("pour_bowl"),
+                    at_rest("catch_bowl"),
+                    at_rest("cube"),
+                ),
+                "persistent",
+            ),
+        ]
+
+    # ---------------------------------------------------------------- expert
+    def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
+        skills = Skills(PlanningModel(scene), speed=SPEED, clearance=CLEARANCE)
+        left_xy = scene.draws["left_bowl_xy"]
+        target_xy = scene.draws["target_xy"]
+
+        def run(motion: Motion) -> Iterator[np.ndarray]:
+            yield from motion.actions()
+            poses = view.object_transforms()
+            skills.sync(skills.q, object_poses=poses)
+            skills.refresh_grasps(poses)
+
+        # The cube only ever rides in a bowl: the planner leaves it out (the bowls and grippers
+        # are checked against each other and the table).
+        with skills.model.ignoring(["cube"]):
+            # ---- stage 1: both arms lift their bowls by the rim (left: away from the spout)
+            left = _pick_pour_bowl(skills, lift=0.12)
+            right = skills.pick("right", "catch_bowl", kinds=["rim"], lift=0.12)
+            yield from run(skills.merge(left, right))
+            # ---- stage 2: right holds its bowl under the meeting point, left brings its spout
+            # lip above it; only when the measured rims are aligned does left tilt.
+            right = skills.move("right", _catch_joints(skills), label="hold under the spout")
+            left = skills.move("left", _spout_joints(skills), label="align the spout")
+            yield from run(skills.merge(left, right))
+            for attempt in range(2):
+                error = _misalignment(view)
+                if error is None:
+                    break
+                if attempt == 1:
+                    raise PlanningError("rims_not_aligned", error)
+                left = skills.move("left", _spout_joints(skills), label="re-align the spout")
+                yield from run(skills.merge(left, None))
+            yield from run(skills.merge(_pour_at_lip(skills, POUR_ANGLE, POUR_HOLD), None))
+            # ---- stage 3: left puts its empty bowl back, right sets its bowl on the target
+            left = skills.place("left", table_target(left_xy, scene.object("pour_bowl").shape))
+            right = skills.place("right", table_target(target_xy, CATCH_BOWL))
+            yield from run(skills.merge(left, right))
+            final = skills.merge(
+                skills.hold("left", SETTLE_STEPS), skills.hold("right", SETTLE_STEPS)
+            )
+            yield from final.actions()
+
+
+# -------------------------------------------------------------------- the pouring bowl
+def pour_bowl_shape() -> CompoundShape:
+    """A base disc and a ring of straight wall slabs; the slabs facing +x are only a low lip."""
+    parts = [
+        Primitive(
+            kind="cylinder",
+            size=(POUR_RADIUS - 0.001, POUR_BASE),
+            pose=Pose(xyz=(0.0, 0.0, POUR_BASE / 2)),
+        )
+    ]
+    r_mid = POUR_RADIUS - POUR_WALL / 2
+    chord = 2 * POUR_RADIUS * np.tan(np.pi / POUR_SEGMENTS) * 1.02
+    for k in range(POUR_SEGMENTS):
+        yaw = 2 * np.pi * k / POUR_SEGMENTS
+        spout = abs(np.angle(np.exp(1j * yaw))) < SPOUT_HALF_ANGLE
+        height = POUR_BASE + POUR_LIP if spout else POUR_HEIGHT
+        parts.append(
+            Primitive(
+                kind="box",
+                size=(POUR_WALL, float(chord), float(height)),
+                pose=Pose(
+                    xyz=(r_mid * np.cos(yaw), r_mid * np.sin(yaw), height / 2), rpy=(0, 0, yaw)
+                ),
+            )
+        )
+    return CompoundShape(parts=tuple(parts))
+
+
+def _pick_pour_bowl(skills: Skills, lift: float) -> ArmPlan:
+    """Left picks the pouring bowl by its rim on its own side, never at the spout (a pick of a
+    compound shape: the rim grasps of the equivalent straight bowl, filtered by azimuth)."""
+    side, name = "left", "pour_bowl"
+    X_WO = skills.model.object_pose(name)
+    proxy = BowlShape(
+        radius=POUR_RADIUS, base_radius=POUR_RADIUS, height=POUR_HEIGHT, wall=POUR_WALL
+    )
+    # Pads clear of the base: its top is POUR_BASE above the bottom.
+    params = GraspParams(tip_clearance=POUR_BASE + 0.003)
+    grasps = bowl_rim_grasps(
+        X_WO,
+        proxy,
+        skills.model.embodiment.arm.gripper,
+        base=arm_base(skills.model.embodiment, side),
+        params=params,
+    )
+    X_OW = X_WO.inverse()
+
+    def on_the_left_side(g: Grasp) -> bool:
+        # Azimuth of the grip in the bowl frame (the spout at 0): the bowl is poured with the
+        # spout toward -y, which puts azimuth -90 deg on the world -x side - the left arm's own
+        # side, clear of the right arm holding the catching bowl.
+        p = X_OW @ g.X_WG.translation()
+        return bool(GRIP_AZIMUTH[0] <= np.arctan2(p[1], p[0]) <= GRIP_AZIMUTH[1])
+
+    # The jaw only as wide as the wall plus a few mm: fully open, the inner finger would come
+    # down near the bowl's centre and sweep the cube against the wall, where it stays pinned.
+    gripper = skills.model.embodiment.arm.gripper
+    opening = float(gripper.opening(POUR_WALL / 2 + GRIP_MARGIN))
+    candidates = [g for g in grasps if on_the_left_side(g)]
+    return _pick_with(skills, side, name, candidates, lift, opening)
+
+
+def _pick_with(
+    skills: Skills,
+    side: str,
+    name: str,
+    grasps: list[Grasp],
+    lift: float,
+    opening: float | None = None,
+) -> ArmPlan:
+    """:meth:`Skills.pick` over given grasp candidates (best first); with `opening`, the jaw
+    narrows to it during the approach (so a finger entering a bowl stays by the wall)."""
+    X_WO = skills.model.object_pose(name)
+    reasons = []
+    for grasp in grasps[:MAX_GRASP_TRIES]:
+        saved = (skills.q.copy(), dict(skills.opening))
+        try:
+            q_pre, q_grasp, q_lift = skills._grasp_keyframes(side, name, grasp, lift)
+            approach = skills.move(side, q_pre, label="approach")
+            if opening is not None:  # narrow the jaw on the way, not after
+                ramp = np.clip(np.arange(approach.num_steps) / skills._gripper_steps, 0, 1)
+                approach.opening = approach.opening + ramp * (opening - approach.opening)
+                skills.opening[side] = opening
+            descend = skills.move(side, q_grasp, label="descend", ignore=[name], straight=True)
+            close = skills.grip(side, 0.0, label="close")
+            skills.model.attach(name, side, skills.q)
+            up = skills.move(side, q_lift, label="lift", ignore=[name], straight=True)
+        except PlanningError as err:
+            if side in skills.model.held:
+                skills.model.detach(side, X_WO=X_WO)
+            skills.q, skills.opening = saved
+            reasons.append(err.reason)
+            continue
+        plan = approach.then(descend, close, up)
+        plan.events.append(
+            (approach.num_steps + descend.num_steps + close.num_steps - 3, "attach", name)
+        )
+        plan.label = f"pick {name}"
+        return plan
+    raise PlanningError(
+        "pick_failed", f"{side} cannot pick {name!r}: tried {len(grasps)} ({', '.join(reasons)})"
+    )
+
+
+def _catch_joints(skills: Skills) -> np.ndarray:
+    """Right-arm joints holding the catching bowl level under the spout, its gripper on the
+    side away from the pour and from the left wrist (+x, then toward the robot)."""
+    from bicoord_drake.planning.ik import TcpTarget
+
+    held = skills.model.held["right"]
+    tcp_x = skills.model.embodiment.arm.gripper.tcp_x
+    X_BT = held.X_GO.inverse() @ RigidTransform([tcp_x, 0.0, 0.0])
+    p_BT = X_BT.translation()
+    a0 = float(np.arctan2(p_BT[1], p_BT[0]))  # the grip's azimuth in the bowl frame
+    p_bowl = LIP_AT + CATCH_OFFSET + [0.0, 0.0, -CATCH_DROP - CATCH_BOWL.height]
+    reasons = []
+    for azimuth in np.radians([-30, -10, -50, 10, -70]):
+        X_WB = RigidTransform(RotationMatrix.MakeZRotation(azimuth - a0), p_bowl)
+        try:
+            return skills.solve_tcp("right", TcpTarget(X_WB @ X_BT))
+        except PlanningError as err:
+            reasons.append(err.reason)
+    raise PlanningError("catch_unreachable", f"right cannot hold its bowl there ({reasons})")
+
+
+def _spout_joints(skills: Skills) -> np.ndarray:
+    """Left-arm joints holding the pouring bowl level with its spout lip at LIP_AT, facing +x
+    (small yaws tried if that is out of reach)."""
+    held = skills.model.held["left"]
+    tcp_x = skills.model.embodiment.arm.gripper.tcp_x
+    X_BT = held.X_GO.inverse() @ RigidTransform([tcp_x, 0.0, 0.0])
+    from bicoord_drake.planning.ik import TcpTarget
+
+    reasons = []
+    for yaw in (0.0, 0.25, -0.25, 0.5, -0.5):
+        R_WB = RotationMatrix.MakeZRotation(POUR_YAW + yaw)
+        X_WB = RigidTransform(R_WB, LIP_AT - R_WB @ LIP_POINT)
+        try:
+            return skills.solve_tcp("left", TcpTarget(X_WB @ X_BT))
+        except PlanningError as err:
+            reasons.append(err.reason)
+    raise PlanningError("align_unreachable", f"left cannot hold the spout at LIP_AT ({reasons})")
+
+
+def _misalignment(view: WorldView) -> str | None:
+    """Why the measured bowls are not ready to pour (None when the rims are aligned)."""
+    poses = view.object_transforms()
+    X_P, X_C = poses["pour_bowl"], poses["catch_bowl"]
+    lip = X_P @ LIP_POINT
+    axis = X_C.translation()
+    rim_z = (X_C @ np.array([0.0, 0.0, CATCH_BOWL.height]))[2]
+    tilts = [np.arccos(np.clip(X.rotation().col(2)[2], -1, 1)) for X in (X_P, X_C)]
+    off = float(np.linalg.norm(lip[:2] - axis[:2]))
+    dz = float(lip[2] - rim_z)
+    if off > ALIGN_XY or not ALIGN_Z[0] <= dz <= ALIGN_Z[1] or max(tilts) > ALIGN_TILT:
+        return (
+            f"spout lip {off * 1000:.0f} mm off the catching bowl's axis, {dz * 1000:.0f} mm "
+            f"above its rim, bowls tilted {np.degrees(tilts[0]):.0f} / {np.degrees(tilts[1]):.0f}"
+            " deg"
+        )
+    return None
+
+
+def _pour_at_lip(skills: Skills, angle: float, hold_steps: int) -> ArmPlan:
+    """Tilt the pouring bowl by `angle` about the horizontal axis through its spout lip (the
+    lip stays put), hold, and tilt back: :meth:`Skills.pour` with a pivot the skill cannot
+    derive from a compound shape."""
+    from bicoord_drake.planning.skills import _axis_angle
+
+    X_WO = skills.model.held_pose("left", skills.q)
+    up = X_WO.rotation().col(2)
+    d = X_WO.rotation().col(0)
+    d = d - (d @ up) * up
+    d /= np.linalg.norm(d)
+    pivot = X_WO @ LIP_POINT
+    axis = np.cross(up, d)
+    X_WT0 = skills.model.tcp_pose(skills.q, "left")
+
+    def turned(a: float) -> RigidTransform:
+        R = RotationMatrix(_axis_angle(axis, a))
+        return RigidTransform(R @ X_WT0.rotation(), pivot + R @ (X_WT0.translation() - pivot))
+
+    reach = float(np.linalg.norm(X_WT0.translation() - pivot)) * abs(angle)
+    tilt = skills._track("left", lambda s: turned(s * angle), reach, angle, label="tilt")
+    hold = skills.hold("left", hold_steps, label="pour")
+    back = skills._track("left", lambda s: turned((1 - s) * angle), reach, angle, label="tilt back")
+    plan = tilt.then(hold, back)
+    plan.label = "pour pour_bowl over its spout"
+    return plan

@@ -1,0 +1,79 @@
+"""handover_block_with_bowls: seeded scenes, stage definitions, and (slow) the expert in physics."""
+
+import numpy as np
+import pytest
+
+import bicoord_drake.tasks.handover_block_with_bowls as hbb
+from bicoord_drake.config import StationConfig
+from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.runner.generate import run_expert
+from bicoord_drake.stages import StageMonitor, WorldState
+from bicoord_drake.stages.predicates import inside, lifted, released
+from bicoord_drake.tasks.base import check_task_class
+from bicoord_drake.tasks.registry import get_task
+
+
+@pytest.fixture(scope="module")
+def task():
+    return get_task("handover_block_with_bowls")
+
+
+def test_task_class_is_well_formed(task):
+    check_task_class(type(task))
+    assert task.step_limit == 350
+    assert len(task.instructions("seen")) + len(task.instructions("unseen")) >= 10
+
+
+def test_scene_is_a_function_of_the_seed(task):
+    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
+    assert a == b and a != c
+    assert {o.name for o in a.objects} == {"pour_bowl", "catch_bowl", "cube", "target"}
+    assert a.object("target").fixed and not a.object("target").collide
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_draws_stay_in_the_reference_ranges(task, seed):
+    scene = task.sample_scene(seed)
+    d = scene.draws
+    assert -0.2 <= d["left_bowl_xy"][0] <= -0.15 and 0.15 <= d["right_bowl_xy"][0] <= 0.2
+    for xy in (d["left_bowl_xy"], d["right_bowl_xy"]):
+        assert -0.15 <= xy[1] <= -0.05
+    assert 0.15 <= d["target_xy"][0] <= 0.2 and -0.05 <= d["target_xy"][1] <= 0.05
+    # the scene is rebuilt from its draws: positions match what was recorded
+    assert scene.object("pour_bowl").pose.xyz[:2] == tuple(d["left_bowl_xy"])
+    assert scene.object("catch_bowl").pose.xyz[:2] == tuple(d["right_bowl_xy"])
+    assert scene.object("target").pose.xyz[:2] == tuple(d["target_xy"])
+    cube_z = scene.object("cube").pose.xyz[2]
+    assert cube_z == pytest.approx(TABLE_TOP + hbb.POUR_BASE + hbb.CUBE / 2, abs=1e-3)
+
+
+def test_initial_state_cube_in_the_left_bowl_and_no_stage_done(task):
+    scene = task.sample_scene(3)
+    state = WorldState.initial(scene)
+    assert inside("cube", "pour_bowl")(state)
+    assert not inside("cube", "catch_bowl")(state)
+    assert not lifted("pour_bowl", 0.05)(state)
+    assert released("catch_bowl")(state)
+    stages = task.stages(scene)
+    assert [s.kind for s in stages] == ["transient", "persistent", "persistent"]
+    assert sum(s.score for s in stages) == pytest.approx(1.0)
+    assert list(StageMonitor(stages).evaluate(state)) == [0, 0, 0]
+
+
+def test_pour_bowl_has_a_low_spout_facing_its_x_axis():
+    shape = hbb.pour_bowl_shape()
+    walls = [p for p in shape.parts if p.kind == "box"]
+    low = [p for p in walls if p.size[2] < hbb.POUR_HEIGHT]
+    assert 1 <= len(low) <= 4
+    for p in low:
+        x, y, _ = p.pose.xyz
+        assert abs(np.arctan2(y, x)) < hbb.SPOUT_HALF_ANGLE
+        # the lip is lower than half the cube: the cube tips over it
+        assert p.size[2] - hbb.POUR_BASE < hbb.CUBE / 2
+
+
+@pytest.mark.slow
+def test_expert_succeeds_on_at_least_90_percent_of_30_seeds(task):
+    results = [run_expert(task, seed, StationConfig(render=False)) for seed in range(30)]
+    failures = [(r.seed, r.reason) for r in results if not r.success]
+    assert len(results) - len(failures) >= 27, failures
