@@ -376,11 +376,13 @@ class Skills:
         lift: float = 0.10,
         kinds: Sequence[str] | None = None,
         grasps: Sequence[Grasp] | None = None,
+        approach_opening: float | None = None,
     ) -> ArmPlan:
         """Approach, grasp and lift object `name` with `side`; it is attached afterwards.
 
         `grasps` (best first) replaces the generated candidates, e.g. for one part of a
-        compound object."""
+        compound object. With `approach_opening` the jaw narrows to that opening during the
+        approach (so a finger entering a container stays by its wall)."""
         X_WO = self.model.object_pose(name)
         if grasps is None:
             base = arm_base(self.model.embodiment, side)
@@ -401,6 +403,12 @@ class Skills:
             saved = (self.q.copy(), dict(self.opening))
             try:
                 approach = self.move(side, q_pre, label="approach")
+                if approach_opening is not None:  # narrow the jaw on the way, not after
+                    ramp = np.clip(np.arange(approach.num_steps) / self._gripper_steps, 0, 1)
+                    approach.opening = approach.opening + ramp * (
+                        approach_opening - approach.opening
+                    )
+                    self.opening[side] = approach_opening
                 descend = self.move(side, q_grasp, label="descend", ignore=[name], straight=True)
                 close = self.grip(side, 0.0, label="close")
                 self.model.attach(name, side, self.q)

@@ -19,7 +19,7 @@ from bicoord_drake.planning.grasps import (
     table_target,
 )
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.skills import MAX_GRASP_TRIES, ArmPlan, Motion, Skills
+from bicoord_drake.planning.skills import ArmPlan, Motion, Skills
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     all_of,
@@ -336,49 +336,7 @@ def _pick_pour_bowl(skills: Skills, lift: float) -> ArmPlan:
     gripper = skills.model.embodiment.arm.gripper
     opening = float(gripper.opening(POUR_WALL / 2 + GRIP_MARGIN))
     candidates = [g for g in grasps if on_the_left_side(g)]
-    return _pick_with(skills, side, name, candidates, lift, opening)
-
-
-def _pick_with(
-    skills: Skills,
-    side: str,
-    name: str,
-    grasps: list[Grasp],
-    lift: float,
-    opening: float | None = None,
-) -> ArmPlan:
-    """:meth:`Skills.pick` over given grasp candidates (best first); with `opening`, the jaw
-    narrows to it during the approach (so a finger entering a bowl stays by the wall)."""
-    X_WO = skills.model.object_pose(name)
-    reasons = []
-    for grasp in grasps[:MAX_GRASP_TRIES]:
-        saved = (skills.q.copy(), dict(skills.opening))
-        try:
-            q_pre, q_grasp, q_lift = skills._grasp_keyframes(side, name, grasp, lift)
-            approach = skills.move(side, q_pre, label="approach")
-            if opening is not None:  # narrow the jaw on the way, not after
-                ramp = np.clip(np.arange(approach.num_steps) / skills._gripper_steps, 0, 1)
-                approach.opening = approach.opening + ramp * (opening - approach.opening)
-                skills.opening[side] = opening
-            descend = skills.move(side, q_grasp, label="descend", ignore=[name], straight=True)
-            close = skills.grip(side, 0.0, label="close")
-            skills.model.attach(name, side, skills.q)
-            up = skills.move(side, q_lift, label="lift", ignore=[name], straight=True)
-        except PlanningError as err:
-            if side in skills.model.held:
-                skills.model.detach(side, X_WO=X_WO)
-            skills.q, skills.opening = saved
-            reasons.append(err.reason)
-            continue
-        plan = approach.then(descend, close, up)
-        plan.events.append(
-            (approach.num_steps + descend.num_steps + close.num_steps - 3, "attach", name)
-        )
-        plan.label = f"pick {name}"
-        return plan
-    raise PlanningError(
-        "pick_failed", f"{side} cannot pick {name!r}: tried {len(grasps)} ({', '.join(reasons)})"
-    )
+    return skills.pick(side, name, lift=lift, grasps=candidates, approach_opening=opening)
 
 
 def _catch_joints(skills: Skills) -> np.ndarray:
