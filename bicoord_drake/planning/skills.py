@@ -32,7 +32,7 @@ from dataclasses import dataclass, field, replace
 from typing import Any, Literal
 
 import numpy as np
-from pydrake.all import JacobianWrtVariable, RigidTransform, RotationMatrix
+from pydrake.all import AngleAxis, JacobianWrtVariable, RigidTransform, RotationMatrix
 
 from bicoord_drake.models.embodiment import SIDES
 from bicoord_drake.models.objects import BowlShape, BoxShape, CylinderShape, SphereShape
@@ -986,6 +986,7 @@ class Skills:
         margin: float = 0.3,
         start: Literal["early", "late"] = "early",
         hold_after: float = 0.8,
+        aim: Sequence[float] = (0.0, 0.0),
     ) -> Motion:
         """Throw the object held by `thrower` into the container held by `catcher`.
 
@@ -997,7 +998,8 @@ class Skills:
         only a light squeeze during the throw). The catcher carries its container, level, with
         its bottom `catch_height` (m) above the table, so that its centre lies under the
         predicted ballistic path (midway between where the object crosses the rim and where it
-        reaches the bottom), and is there `margin` s before the object reaches the rim
+        reaches the bottom) plus `aim` (a horizontal world offset in m, e.g. to land beside
+        what is already in it), and is there `margin` s before the object reaches the rim
         (:func:`~bicoord_drake.planning.timing.throw_and_catch`). The flight is checked against
         both arms. ``info`` holds the predicted release, rim crossing and landing (motion sample
         indices and seconds from the motion's start). On failure nothing is changed.
@@ -1022,6 +1024,7 @@ class Skills:
                 margin,
                 start,
                 hold_after,
+                np.asarray(aim, dtype=float),
             )
 
     def _toss(
@@ -1037,6 +1040,7 @@ class Skills:
         margin,
         start,
         hold_after,
+        aim,
     ) -> Motion:
         from bicoord_drake.planning.motion import plan_path
 
@@ -1048,20 +1052,32 @@ class Skills:
         p_rel = np.asarray(release, dtype=float)
         v = speed * (np.cos(angle) * direction + np.sin(angle) * np.array([0.0, 0.0, 1.0]))
 
-        # The catch: where the object crosses the rim and the bottom of the raised bowl.
+        throw, q_wind, soft = self._throw(thrower, held, p_rel, v)
+        # The catch: where the object (as oriented at the release) crosses the rim and the
+        # bottom of the raised bowl.
+        R = self.model.held_pose(thrower, self._q12(thrower, throw.q_release)).rotation().matrix()
         cup = self.model.object(bowl.name).shape
         z_bowl = TABLE_TOP + catch_height
-        R_WB = self.model.held_pose(catcher, self.q).rotation()
-        h = max(_half_extent(shape, R_WB.matrix(), [0, 0, 1.0]), 0.01)
+        R_WB = _levelled(self.model.held_pose(catcher, self.q).rotation())
+        h = max(_half_extent(shape, R, [0, 0, 1.0]), 0.01)
         rim, t_rim = ballistic_landing(p_rel, v, z_bowl + cup.height + h)
         bottom, t_bottom = ballistic_landing(p_rel, v, z_bowl + cup.wall + h)
         centre = (rim + bottom) / 2
-        inner = cup.radius - cup.wall - float(np.linalg.norm((rim - bottom)[:2])) / 2
-        if inner < _half_extent(shape, R_WB.matrix(), direction):
-            raise PlanningError("catch_too_steep", "the object would hit the rim")
-        q_catch = self._catch_pose(catcher, bowl, np.array([*centre[:2], z_bowl]), direction)
-
-        throw, q_wind, soft = self._throw(thrower, held, p_rel, v)
+        # The object's footprint, from the rim crossing to the bottom, must fit inside the wall.
+        across = np.array([-direction[1], direction[0], 0.0])
+        along_extent = float(np.linalg.norm((rim - bottom)[:2])) / 2 + _half_extent(
+            shape, R, direction
+        )
+        across_extent = _half_extent(shape, R, across)
+        reach = np.hypot(
+            abs(aim @ direction[:2]) + along_extent, abs(aim @ across[:2]) + across_extent
+        )
+        if reach > cup.radius - cup.wall:
+            raise PlanningError(
+                "catch_too_steep", f"the object would hit the rim ({reach:.3f} m from the axis)"
+            )
+        p_bowl = np.array([*(centre[:2] - aim[:2]), z_bowl])
+        q_catch = self._catch_pose(catcher, bowl, p_bowl, direction)
         q_start, o_start = self.q.copy(), dict(self.opening)
         # The thrower: windup (catcher still), then the throw with the catcher moving in.
         windup = self.move(thrower, q_wind, label="windup")
@@ -1126,17 +1142,19 @@ class Skills:
             rim_time=(offset + r) * self.dt + flight,
             landing_time=(offset + r) * self.dt + RELEASE_DELAY + t_bottom,
             catch_arrival_index=offset + plan.catch.arrival_index,
-            bowl_pose=RigidTransform(R_WB, [*centre[:2], z_bowl]),
+            bowl_pose=RigidTransform(R_WB, p_bowl),
         )
         return motion
 
     def _catch_pose(self, catcher, bowl, p_bowl: np.ndarray, direction: np.ndarray) -> np.ndarray:
-        """Catcher joints holding its bowl (level, as held) with the bowl frame at `p_bowl`.
+        """Catcher joints holding its bowl level with the bowl frame at `p_bowl`.
 
-        The bowl may turn about its axis. The gripper goes to the far side of the flight: its
-        body spans the rim above the bowl, so the object must not pass over it on the way in."""
+        The bowl may turn about its axis. A bowl that sags in the grasp (as measured by
+        :meth:`refresh_grasps`) is levelled by tilting the gripper. The gripper goes to the far
+        side of the flight: its body spans the rim above the bowl, so the object must not pass
+        over it on the way in."""
         X_BT = bowl.X_GO.inverse() @ RigidTransform([self.model.embodiment.arm.gripper.tcp_x, 0, 0])
-        R_WB = self.model.held_pose(catcher, self.q).rotation()
+        R_WB = _levelled(self.model.held_pose(catcher, self.q).rotation())
         base = arm_base(self.model.embodiment, catcher)
         toward_base = (base - p_bowl)[:2] / np.linalg.norm((base - p_bowl)[:2])
         options = []
@@ -1357,6 +1375,17 @@ def _release_velocity(
         j = int(np.argmax(np.abs(qd) / limits.velocity))
         raise PlanningError("throw_too_fast", f"joint {j} would need {qd[j]:.2f} rad/s")
     return qd
+
+
+def _levelled(R_WB: RotationMatrix) -> RotationMatrix:
+    """`R_WB` turned by the smallest rotation that makes its z axis vertical (its yaw kept)."""
+    z = R_WB.col(2)
+    axis = np.cross(z, [0.0, 0.0, 1.0])
+    s, c = float(np.linalg.norm(axis)), float(z[2])
+    if s < 1e-9:
+        return R_WB
+    tilt = RotationMatrix(AngleAxis(np.arctan2(s, c), axis / s))
+    return tilt @ R_WB
 
 
 def _half_extent(shape, R: np.ndarray, u: Sequence[float]) -> float:

@@ -6,6 +6,7 @@ measurements in benchmarks/bench_task_cook.md).
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Iterator
 
 import numpy as np
@@ -39,9 +40,17 @@ ROLL_YAW = (0.15, 0.45)
 #: The skillet: a shallow pan with straight 12 mm walls, held by its rim (see the class doc).
 SKILLET = BowlShape(radius=0.09, base_radius=0.09, height=0.045, wall=0.012, segments=20)
 SKILLET_MASS = 0.12
-#: The plate: 19 cm with a low rim. Shifted toward the robot from the reference layout (x in
+#: Non-stick: the rolls slide off the pan's inside once it is tipped past ~114 degrees (Drake
+#: combines two friction coefficients as 2ab/(a+b): 0.45 against a roll at 0.9). The pan sags
+#: ~10 degrees in the rim grasp when tipped, so a planned 2.3 rad tilt gives ~122 degrees.
+SKILLET_FRICTION = 0.3
+#: Where the rolls land in the pan: the first ROLL_AIM across the flight (m, world y) off the
+#: pan's axis, the second ROLL_SPACING beside the first as measured after it landed.
+ROLL_AIM, ROLL_SPACING = 0.03, 0.045
+#: The plate: 24 cm with a low rim (the rolls leave the pan at up to ~0.7 m/s and must stop on
+#: it). Shifted toward the robot from the reference layout (x in
 #: [-0.05, 0], y in [0.15, 0.20]): the right arm cannot tip the held skillet over it there.
-PLATE = BowlShape(radius=0.095, base_radius=0.08, height=0.02, wall=0.006, segments=20)
+PLATE = BowlShape(radius=0.12, base_radius=0.105, height=0.02, wall=0.006, segments=24)
 PLATE_X, PLATE_Y = (-0.05, -0.02), (0.03, 0.06)
 #: The stove: a fixed red 10 cm square under the catch.
 STOVE_XY = (0.06, -0.05)
@@ -66,14 +75,21 @@ STEEP_RELEASES = (
 )
 #: Shake: amplitude (m) along world x and number of full back-and-forth cycles.
 SHAKE_AMPLITUDE, SHAKE_CYCLES = 0.05, 2
-#: Serve: pour directions and tilt angles tried (first that plans wins), height of the pan's
-#: bottom above the plate's rim when the tilt starts, how far past the plate's centre the lip
-#: is, and how long the pan stays tipped.
-POUR_DIRECTIONS = ((1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
-POUR_ANGLES = (2.2, 1.9)
-POUR_HEIGHT = 0.06
-POUR_LIP_OFFSET = 0.02
-POUR_HOLD = 12
+#: Serve: pour directions (the most reachable first) and tilt angles tried (first that plans
+#: wins), height of the pan's bottom above the plate's rim when the tilt starts, how far past
+#: the plate's centre the lip is (negative: short of it; the rolls slide out and land beyond
+#: the lip), and how long the pan stays tipped.
+POUR_DIRECTIONS = tuple(
+    (float(np.cos(np.radians(a))), float(np.sin(np.radians(a))), 0.0)
+    for a in (0, 225, 45, 315, 180, 270, 90, 135)
+)
+#: Serve: the gripper may sit at most this far toward the lip (cosine between the pan centre ->
+#: gripper and pour directions); rolls leaving the pan must not run into it.
+POUR_GRIP_ALIGNMENT = 0.35
+POUR_ANGLES = (2.5, 2.3, 2.1)
+POUR_HEIGHT = 0.015
+POUR_LIP_OFFSET = -0.06
+POUR_HOLD = 20
 SETTLE_STEPS = 10
 #: Where rolls that lie in the pan are kept in the planning model (see ``_park``).
 PARKED = np.array([0.0, 2.0, -2.0])
@@ -139,8 +155,12 @@ class Cook(Task):
                 break
         xs = rng.uniform(-0.28, -0.20, size=2)
         yaws = rng.uniform(*ROLL_YAW, size=2)
-        skillet_xy = (float(rng.uniform(0.15, 0.25)), float(rng.uniform(-0.15, -0.05)))
         plate_xy = (float(rng.uniform(*PLATE_X)), float(rng.uniform(*PLATE_Y)))
+        while True:  # the skillet never stands on the plate's rim
+            skillet_xy = (float(rng.uniform(0.15, 0.25)), float(rng.uniform(-0.15, -0.05)))
+            gap = np.hypot(skillet_xy[0] - plate_xy[0], skillet_xy[1] - plate_xy[1])
+            if gap >= PLATE.radius + SKILLET.radius + 0.01:
+                break
         order = np.argsort(-ys)  # roll_0 is the far one (picked first, the near one stays clear)
         rolls = [
             _roll(name, float(xs[i]), float(ys[i]), float(yaws[i]))
@@ -160,6 +180,7 @@ class Cook(Task):
                 shape=SKILLET,
                 color=(0.18, 0.18, 0.2, 1.0),
                 mass=SKILLET_MASS,
+                friction=SKILLET_FRICTION,
                 pose=Pose(xyz=(skillet_xy[0], skillet_xy[1], TABLE_TOP)),
             ),
             *rolls,
@@ -242,11 +263,11 @@ class Cook(Task):
         right = skills.pick("right", "skillet", kinds=["rim"], lift=0.10)
         yield from run(skills.merge(left, right))
         # ---- stage 2: toss roll 1; pick roll 2 (the skillet waits over the stove); toss it
-        yield from run(_toss(skills))
+        yield from run(_toss(skills, ROLL_AIM))
         in_pan.append(ROLLS[0])
         _park(skills, in_pan)
         yield from run(skills.merge(skills.pick("left", ROLLS[1], kinds=["top"]), None))
-        yield from run(_toss(skills))
+        yield from run(_toss(skills, _aim_beside(view, ROLLS[0])))
         in_pan.append(ROLLS[1])
         _park(skills, in_pan)
         # ---- stage 3: left goes home, right shakes the skillet +-5 cm along x, twice
@@ -323,14 +344,31 @@ def _park(skills: Skills, names: list[str]) -> None:
         skills.model.set_object_pose(name, RigidTransform(PARKED + [0.3 * k, 0, 0]))
 
 
-def _toss(skills: Skills) -> Motion:
-    """Left throws its roll into the skillet right holds (``Skills.toss``), trying RELEASES."""
+def _aim_beside(view: WorldView, roll: str) -> float:
+    """Where (world y offset from the pan's axis, m) the next roll should land: ROLL_SPACING
+    across the flight from `roll` as it lies in the pan now, kept inside the pan."""
+    poses = view.object_transforms()
+    dy = float(poses[roll].translation()[1] - poses["skillet"].translation()[1])
+    side = -1.0 if dy >= 0 else 1.0
+    return float(np.clip(dy + side * ROLL_SPACING, -ROLL_AIM - 0.005, ROLL_AIM + 0.005))
+
+
+def _toss(skills: Skills, aim_y: float) -> Motion:
+    """Left throws its roll into the skillet right holds (``Skills.toss``), landing `aim_y`
+    (m) off the pan's axis across the flight (or nearer the axis if that cannot fit), trying
+    RELEASES."""
     reasons = []
     options = [(xyz, speed, np.radians(45)) for xyz, speed in RELEASES] + list(STEEP_RELEASES)
-    for (x, y, z), speed, angle in options:
+    aims = (aim_y, 0.66 * aim_y, 0.33 * aim_y)
+    for ((x, y, z), speed, angle), aim in ((o, a) for a in aims for o in options):
         try:
             return skills.toss(
-                "left", "right", release=(x, y, TABLE_TOP + z), speed=speed, angle=angle
+                "left",
+                "right",
+                release=(x, y, TABLE_TOP + z),
+                speed=speed,
+                angle=angle,
+                aim=(0.0, aim),
             )
         except PlanningError as err:
             reasons.append(err.reason if reasons else str(err))
@@ -375,7 +413,8 @@ def _serve(skills: Skills, side: str, plate: np.ndarray) -> ArmPlan:
             grip = (X_WT.translation() - p_B)[:2]
             grip /= max(float(np.linalg.norm(grip)), 1e-9)
             options.append((float(grip @ d[:2]), X_WT))
-        for _, X_WT in sorted(options, key=lambda o: o[0])[:6]:
+        usable = [o for o in options if o[0] <= POUR_GRIP_ALIGNMENT]
+        for _, X_WT in sorted(usable, key=lambda o: o[0]):
             try:
                 q6 = skills.solve_tcp(side, TcpTarget(X_WT))
             except PlanningError as err:
@@ -392,9 +431,8 @@ def _serve(skills: Skills, side: str, plate: np.ndarray) -> ArmPlan:
                 plan = carry.then(tip)
                 plan.label = f"serve: tip the skillet {angle:.1f} rad toward {d.tolist()}"
                 return plan
-    raise PlanningError(
-        "serve_failed", f"{side} cannot tip the skillet over the plate ({', '.join(reasons)})"
-    )
+    counts = ", ".join(f"{r} x{n}" for r, n in Counter(reasons).most_common())
+    raise PlanningError("serve_failed", f"{side} cannot tip the skillet over the plate ({counts})")
 
 
 # -------------------------------------------------------------------- scene helpers
