@@ -83,6 +83,8 @@ RELEASE_GAP = 0.0015
 RELEASE_DELAY = 0.042
 #: Throws: constant-velocity control periods before and after the release sample.
 THROW_COAST = (1, 3)
+#: Throws: the share of each joint's velocity limit the release velocity may use.
+THROW_SPEED_SHARE = 0.9
 
 
 @dataclass
@@ -362,9 +364,12 @@ class Skills:
     # ------------------------------------------------------------------ manipulation
     def refresh_grasps(self, object_poses: dict[str, RigidTransform]) -> None:
         """Re-measure each held object's pose in its gripper from measured poses (a grasp
-        settles by a few mm when the fingers close), so later placements aim right."""
+        settles by a few mm when the fingers close), so later placements aim right. Held
+        objects missing from `object_poses` keep their grasp."""
         for side, held in list(self.model.held.items()):
-            X_WO = object_poses[held.name]
+            X_WO = object_poses.get(held.name)
+            if X_WO is None:
+                continue
             self.model.detach(side, X_WO=X_WO)
             self.model.attach(held.name, side, self.q, X_WO=X_WO)
 
@@ -1187,27 +1192,47 @@ class Skills:
 
         The object's centre passes `p_rel` with velocity `v` RELEASE_DELAY after the release
         sample (inside the coast, whose joint velocity gives exactly `v` there). The windup lies
-        on the same joint line, far enough back to reach that velocity. For a cube, the four
-        yaws of the grip are tried and the one with the slowest joints wins."""
+        on the same joint line, far enough back to reach that velocity. A box may be turned
+        about the vertical on the way to the release (quarter turns, as held or squared to the
+        flight): the shortest along the flight (its long side across) first, then the one with
+        the least spin."""
         obj = self.model.object(held.name)
         gripper = self.model.embodiment.arm.gripper
         limits = JointLimits.from_embodiment(self.model.embodiment, arms=1, speed=1.0)
         X_OT = held.X_GO.inverse() @ RigidTransform([gripper.tcp_x, 0.0, 0.0])
         R_WO = self.model.held_pose(thrower, self.q).rotation()
-        yaws = symmetric_yaws(obj.shape) if isinstance(obj.shape, BoxShape) else [0.0]
+        direction = v[:2] / max(float(np.linalg.norm(v[:2])), 1e-9)
+        yaws = [0.0]
+        if isinstance(obj.shape, BoxShape):
+            # Quarter turns, as held and with the box's x axis squared to the flight.
+            x = R_WO.matrix()[:2, 0]
+            square = np.arctan2(direction[1], direction[0]) - np.arctan2(x[1], x[0])
+            yaws = [k * np.pi / 2 + offset for offset in (square, 0.0) for k in range(4)]
         options, reasons = [], []
         for yaw in yaws:
-            X_WT = RigidTransform(RotationMatrix.MakeZRotation(yaw) @ R_WO, p_rel) @ X_OT
+            R_rel = RotationMatrix.MakeZRotation(yaw) @ R_WO
+            X_WT = RigidTransform(R_rel, p_rel) @ X_OT
+            # A long object flies with its long axis across the flight: landing end first, it
+            # would pivot up onto its end.
+            length = _half_extent(obj.shape, R_rel.matrix(), [*direction, 0.0])
             try:
                 q_rel = self.solve_tcp(thrower, TcpTarget(X_WT))
-                q12 = self._q12(thrower, q_rel)
-                J = self._throw_jacobian(thrower, q12, held.X_GO.translation())
-                qd = _release_velocity(J, q_rel, np.r_[0.0, 0.0, v], limits)
             except PlanningError as err:
                 reasons.append(err.reason)
                 continue
-            options.append((float(np.max(np.abs(qd) / limits.velocity)), q_rel, qd))
-        for _, q_rel, qd in sorted(options, key=lambda o: o[0]):
+            J = self._throw_jacobian(thrower, self._q12(thrower, q_rel), held.X_GO.translation())
+            # The least spin the joint speeds allow, and the slowest joints (a shorter windup).
+            for least_spin in (True, False):
+                try:
+                    qd = _least_spin_velocity(
+                        J, v, limits.velocity * THROW_SPEED_SHARE, least_spin=least_spin
+                    )
+                except PlanningError as err:
+                    reasons.append(err.reason)
+                    continue
+                options.append((round(length / 0.005), abs(float(J[1] @ qd)), q_rel, qd))
+        # The shortest along the flight (long axis across it) first, then the least spin.
+        for *_, q_rel, qd in sorted(options, key=lambda o: o[:2]):
             q_sample = q_rel - RELEASE_DELAY * qd
             # Joint-line distance (in seconds of release velocity) to reach it from rest.
             a = float(np.min(limits.acceleration / np.maximum(np.abs(qd), 1e-9)))
@@ -1220,6 +1245,12 @@ class Skills:
                 plan = throw_release(
                     q_wind, q_sample, limits, self.dt, qd_release=qd, coast=THROW_COAST
                 )
+                with self.model.padded(0.0, 0.0):
+                    if not all(
+                        self.model.collision_free(self._q12(thrower, q))
+                        for q in (q_wind, *plan.trajectory.q)
+                    ):
+                        raise PlanningError("throw_in_collision", "the windup or throw collides")
             except PlanningError as err:
                 reasons.append(err.reason)
                 continue
@@ -1235,11 +1266,9 @@ class Skills:
         return plan, q_wind, soft
 
     def _throw_jacobian(self, side: str, q12: np.ndarray, p_GQ: np.ndarray) -> np.ndarray:
-        """(5, 6) Jacobian of a throw: the gripper's angular velocity about its approach (x) and
-        z axes, then the velocity of point Q (fixed in the gripper link), in the world.
-
-        Keeping those two rates at zero lets a loosened object leave without being turned
-        against the pads (a turn about the finger axis does not change the jaw width needed)."""
+        """(6, 6) Jacobian of a throw: the gripper's angular velocity about its own x
+        (approach), y (finger) and z axes, then the velocity of point Q (fixed in the gripper
+        link) in the world."""
         plant = self.model.plant
         plant.SetPositions(self._jac_context, self.model.full_q(q12))
         frame = self.model.gripper_bodies[side].body_frame()
@@ -1252,7 +1281,7 @@ class Skills:
             plant.world_frame(),
         )[:, self._v_indices[side]]
         R = frame.CalcPoseInWorld(self._jac_context).rotation().matrix()
-        return np.vstack([R[:, [0, 2]].T @ J[:3], J[3:]])
+        return np.vstack([R.T @ J[:3], J[3:]])
 
     def _check_flight(self, motion, name, R_WO, p_rel, v, i_rel, t_end) -> None:
         """The flying object must clear both arms and the scene until it is over the rim."""
@@ -1366,15 +1395,35 @@ def _combine(left: ArmPlan, right: ArmPlan) -> Motion:
     )
 
 
-def _release_velocity(
-    J: np.ndarray, q: np.ndarray, v: np.ndarray, limits: JointLimits
+def _least_spin_velocity(
+    J: np.ndarray, v: np.ndarray, cap: np.ndarray, *, least_spin: bool = True
 ) -> np.ndarray:
-    """Joint velocity giving point velocity `v` (minimum norm), within the velocity limits."""
-    qd = release_joint_velocity(J, q, v)
-    if np.any(np.abs(qd) > limits.velocity):
-        j = int(np.argmax(np.abs(qd) / limits.velocity))
-        raise PlanningError("throw_too_fast", f"joint {j} would need {qd[j]:.2f} rad/s")
-    return qd
+    """Release joint velocity for the throw Jacobian `J` (:meth:`Skills._throw_jacobian`):
+    point velocity `v`, no turn about the gripper's x and z axes (a loosened object leaves
+    without being turned against the pads), and the least turn about the finger axis (a
+    tumbling object lands on an edge or an end) that keeps every joint within `cap` (rad/s);
+    without `least_spin`, the minimum-norm joint velocity (if within `cap`).
+
+    Five equations leave one free direction n: qd = qd0 + t n, and the finger-axis rate is
+    linear in t, so the best t is the unconstrained one clipped to the interval the caps allow.
+    """
+    A, spin = J[[0, 2, 3, 4, 5]], J[1]
+    qd0 = release_joint_velocity(A, np.zeros(J.shape[1]), np.r_[0.0, 0.0, v])
+    n = np.linalg.svd(A)[2][-1]
+    lo, hi = -np.inf, np.inf
+    for q0, ni, c in zip(qd0, n, cap, strict=True):
+        if abs(ni) < 1e-12:
+            if abs(q0) > c:
+                lo, hi = np.inf, -np.inf
+            continue
+        a, b = sorted(((-c - q0) / ni, (c - q0) / ni))
+        lo, hi = max(lo, a), min(hi, b)
+    if lo > hi:
+        j = int(np.argmax(np.abs(qd0) / cap))
+        raise PlanningError("throw_too_fast", f"joint {j} would need {qd0[j]:.2f} rad/s")
+    rate = float(spin @ n)
+    t = -float(spin @ qd0) / rate if abs(rate) > 1e-9 and least_spin else 0.0
+    return qd0 + float(np.clip(t, lo, hi)) * n
 
 
 def _levelled(R_WB: RotationMatrix) -> RotationMatrix:

@@ -1,7 +1,6 @@
 """cook: toss two bread rolls into a skillet the other arm holds, shake it, serve onto a plate.
 
-Work in progress: not listed in TASK_MODULES until its expert verifies in physics (state and
-measurements in benchmarks/bench_task_cook.md).
+Measurements of the expert in physics: benchmarks/bench_task_cook.md.
 """
 
 from __future__ import annotations
@@ -28,6 +27,7 @@ from bicoord_drake.stages.predicates import (
     fraction_true,
     inside,
     lifted,
+    not_,
 )
 from bicoord_drake.tasks.base import Task, WorldView
 from bicoord_drake.tasks.registry import register_task
@@ -38,15 +38,18 @@ ROLL_RADIUS, ROLL_LENGTH, ROLL_MASS = 0.02, 0.08, 0.025
 #: axes still while its z axis points along the throw: the joints cannot reach 0.78 m/s there.
 ROLL_YAW = (0.15, 0.45)
 #: The skillet: a shallow pan with straight 12 mm walls, held by its rim (see the class doc).
-SKILLET = BowlShape(radius=0.09, base_radius=0.09, height=0.045, wall=0.012, segments=20)
+SKILLET = BowlShape(radius=0.10, base_radius=0.10, height=0.045, wall=0.012, segments=20)
 SKILLET_MASS = 0.12
 #: Non-stick: the rolls slide off the pan's inside once it is tipped past ~114 degrees (Drake
 #: combines two friction coefficients as 2ab/(a+b): 0.45 against a roll at 0.9). The pan sags
 #: ~10 degrees in the rim grasp when tipped, so a planned 2.3 rad tilt gives ~122 degrees.
 SKILLET_FRICTION = 0.3
-#: Where the rolls land in the pan: the first ROLL_AIM across the flight (m, world y) off the
-#: pan's axis, the second ROLL_SPACING beside the first as measured after it landed.
-ROLL_AIM, ROLL_SPACING = 0.03, 0.045
+#: Where the rolls land in the pan (m along the flight, world x, from the pan's axis): the first
+#: at ROLL_AIM, past the axis (on the non-stick pan it slides on to the far wall anyway), the
+#: second at least ROLL_SPACING from where the first lies, on the other side of it, at most
+#: ROLL_REACH from the axis. The rolls fly with their long axis across the flight
+#: (``Skills.toss``), so they come to lie side by side.
+ROLL_AIM, ROLL_SPACING, ROLL_REACH = 0.035, 0.045, 0.045
 #: The plate: 24 cm with a low rim (the rolls leave the pan at up to ~0.7 m/s and must stop on
 #: it). Shifted toward the robot from the reference layout (x in
 #: [-0.05, 0], y in [0.15, 0.20]): the right arm cannot tip the held skillet over it there.
@@ -88,7 +91,7 @@ POUR_DIRECTIONS = tuple(
 POUR_GRIP_ALIGNMENT = 0.35
 POUR_ANGLES = (2.5, 2.3, 2.1)
 POUR_HEIGHT = 0.015
-POUR_LIP_OFFSET = -0.06
+POUR_LIP_OFFSET = -0.075
 POUR_HOLD = 20
 SETTLE_STEPS = 10
 #: Where rolls that lie in the pan are kept in the planning model (see ``_park``).
@@ -100,7 +103,7 @@ class Cook(Task):
     """Toss two bread rolls into a skillet, shake it over the stove and serve onto a plate.
 
     Description: two bread rolls (8 x 4 x 4 cm blocks, 25 g) wait on the left at
-    x in [-0.28, -0.20], y in [-0.20, 0.05]; a skillet (a shallow 18 cm pan with straight 12 mm
+    x in [-0.28, -0.20], y in [-0.20, 0.05]; a skillet (a shallow 20 cm pan with straight 12 mm
     walls, 4.5 cm high, 120 g) stands on the right at x in [0.15, 0.25], y in [-0.15, -0.05]; a
     static plate (19 cm, low rim) lies at x in [-0.05, -0.02], y in [0.03, 0.06] (shifted
     toward the robot from y in [0.15, 0.20], out of the right arm's reach with the pan); a
@@ -203,9 +206,12 @@ class Cook(Task):
     # ---------------------------------------------------------------- stages
     def stages(self, scene: Scene) -> list[Stage]:
         in_pan = [inside(r, "skillet", margin=0.005, z_above=0.02) for r in ROLLS]
+        # On the plate: over it, lying on it or on the other roll lying on it (centre at most
+        # two roll thicknesses above its rim), out of the pan, untouched and at rest.
         served = [
             all_of(
-                inside(r, "plate", margin=0.005, z_above=0.03),
+                inside(r, "plate", margin=0.005, z_above=4 * ROLL_RADIUS - 0.01),
+                not_(inside(r, "skillet", z_above=0.02)),
                 _untouched(r),
                 at_rest(r, linear_tol=0.02, angular_tol=0.3),
             )
@@ -263,7 +269,7 @@ class Cook(Task):
         right = skills.pick("right", "skillet", kinds=["rim"], lift=0.10)
         yield from run(skills.merge(left, right))
         # ---- stage 2: toss roll 1; pick roll 2 (the skillet waits over the stove); toss it
-        yield from run(_toss(skills, ROLL_AIM))
+        yield from run(_toss(skills, [ROLL_AIM, 0.5 * ROLL_AIM, 0.0]))
         in_pan.append(ROLLS[0])
         _park(skills, in_pan)
         yield from run(skills.merge(skills.pick("left", ROLLS[1], kinds=["top"]), None))
@@ -344,22 +350,26 @@ def _park(skills: Skills, names: list[str]) -> None:
         skills.model.set_object_pose(name, RigidTransform(PARKED + [0.3 * k, 0, 0]))
 
 
-def _aim_beside(view: WorldView, roll: str) -> float:
-    """Where (world y offset from the pan's axis, m) the next roll should land: ROLL_SPACING
-    across the flight from `roll` as it lies in the pan now, kept inside the pan."""
+def _aim_beside(view: WorldView, roll: str) -> list[float]:
+    """Where (world x offsets from the pan's axis, m, in the order tried) the next roll may
+    land: on the side of `roll` (as it lies in the pan now) with more room, at least
+    ROLL_SPACING from it and at most ROLL_REACH from the axis."""
     poses = view.object_transforms()
-    dy = float(poses[roll].translation()[1] - poses["skillet"].translation()[1])
-    side = -1.0 if dy >= 0 else 1.0
-    return float(np.clip(dy + side * ROLL_SPACING, -ROLL_AIM - 0.005, ROLL_AIM + 0.005))
+    dx = float(poses[roll].translation()[0] - poses["skillet"].translation()[0])
+    side = -1.0 if dx >= 0.0 else 1.0
+    nearest = dx + side * ROLL_SPACING
+    if abs(nearest) > ROLL_REACH:
+        raise PlanningError(
+            "pan_full", f"no room beside {roll} ({dx:+.3f} m from the pan's axis along the flight)"
+        )
+    return [side * ROLL_REACH, (side * ROLL_REACH + nearest) / 2, nearest]
 
 
-def _toss(skills: Skills, aim_y: float) -> Motion:
-    """Left throws its roll into the skillet right holds (``Skills.toss``), landing `aim_y`
-    (m) off the pan's axis across the flight (or nearer the axis if that cannot fit), trying
-    RELEASES."""
+def _toss(skills: Skills, aims: list[float]) -> Motion:
+    """Left throws its roll into the skillet right holds (``Skills.toss``), landing at the first
+    of `aims` (m off the pan's axis along the flight) that plans, trying RELEASES."""
     reasons = []
     options = [(xyz, speed, np.radians(45)) for xyz, speed in RELEASES] + list(STEEP_RELEASES)
-    aims = (aim_y, 0.66 * aim_y, 0.33 * aim_y)
     for ((x, y, z), speed, angle), aim in ((o, a) for a in aims for o in options):
         try:
             return skills.toss(
@@ -368,7 +378,7 @@ def _toss(skills: Skills, aim_y: float) -> Motion:
                 release=(x, y, TABLE_TOP + z),
                 speed=speed,
                 angle=angle,
-                aim=(0.0, aim),
+                aim=(aim, 0.0),
             )
         except PlanningError as err:
             reasons.append(err.reason if reasons else str(err))

@@ -242,6 +242,52 @@ def test_toss_plan_meets_the_contract():
     assert skills.model.held.get("left") is None
 
 
+def test_toss_levels_a_sagging_bowl_and_lands_at_the_aim():
+    scene = toss_scene(0)
+    skills = Skills(PlanningModel(scene), speed=SPEED)
+    skills.merge(
+        skills.pick("left", "cube", kinds=["top"]),
+        skills.pick("right", "bowl", kinds=["rim"], lift=0.1),
+    )
+    # The bowl sags 6 degrees in the rim grasp (as measured in physics after a lift).
+    X_WB = skills.model.held_pose("right", skills.q)
+    tilt = RotationMatrix.MakeXRotation(np.radians(6)) @ RotationMatrix.MakeYRotation(0.05)
+    skills.refresh_grasps({"bowl": RigidTransform(tilt @ X_WB.rotation(), X_WB.translation())})
+    q = skills.q.copy()
+    with pytest.raises(PlanningError) as err:  # this aim puts the cube on the rim
+        skills.toss("left", "right", aim=(BOWL.radius, 0.0))
+    assert err.value.reason == "catch_too_steep" and np.array_equal(skills.q, q)
+    aim = np.array([0.01, -0.015])
+    toss = skills.toss("left", "right", aim=aim)
+    info = toss.info
+    arrival = info["catch_arrival_index"]
+    X_caught = skills.model.held_pose("right", toss.q[arrival])
+    assert X_caught.rotation().col(2)[2] > np.cos(np.radians(0.5))  # level again
+    assert np.allclose(X_caught.translation()[:2], info["landing_point"][:2] - aim, atol=1e-3)
+
+
+def test_least_spin_release_velocity():
+    from bicoord_drake.planning.skills import _least_spin_velocity
+
+    rng = np.random.default_rng(3)
+    J = rng.normal(size=(6, 6))
+    v = np.array([0.8, 0.0, 0.8])
+    equations = [0, 2, 3, 4, 5]
+    loose = _least_spin_velocity(J, v, np.full(6, 100.0))
+    assert np.allclose(J[equations] @ loose, np.r_[0.0, 0.0, v], atol=1e-9)
+    assert abs(J[1] @ loose) < 1e-9  # no joint cap in the way: no spin at all
+    plain = _least_spin_velocity(J, v, np.full(6, 100.0), least_spin=False)
+    assert np.allclose(J[equations] @ plain, np.r_[0.0, 0.0, v], atol=1e-9)
+    cap = np.abs(plain) + 0.2 * np.abs(loose - plain).max()  # some room, not all
+    tight = _least_spin_velocity(J, v, cap)
+    assert np.all(np.abs(tight) <= cap + 1e-9)
+    assert np.allclose(J[equations] @ tight, np.r_[0.0, 0.0, v], atol=1e-9)
+    assert abs(J[1] @ plain) > abs(J[1] @ tight) > 1e-6
+    with pytest.raises(PlanningError) as err:
+        _least_spin_velocity(J, v, 0.1 * np.abs(plain))
+    assert err.value.reason == "throw_too_fast"
+
+
 def test_dynamic_skills_refuse_what_they_cannot_do():
     skills = Skills(PlanningModel(toss_scene(0)))
     with pytest.raises(PlanningError) as info:
