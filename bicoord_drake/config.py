@@ -1,7 +1,8 @@
 """Validated, documented user-facing settings (pydantic).
 
 Every setting has a default; a bad value raises a ``pydantic.ValidationError`` that names the
-field. :func:`parse_resolution` turns ``"320x240"`` into ``(320, 240)`` for the CLIs.
+field (:func:`validation_message` says it in one line). :func:`parse_resolution` turns
+``"320x240"`` into ``(320, 240)`` for the CLIs.
 """
 
 from __future__ import annotations
@@ -9,10 +10,23 @@ from __future__ import annotations
 import re
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 CAMERA_NAMES = ("head_camera", "left_camera", "right_camera")
 CameraName = Literal["head_camera", "left_camera", "right_camera"]
+
+
+def validation_message(err: ValidationError, *, as_option: bool = False) -> str:
+    """One line naming the first invalid field and what is wrong with it, e.g.
+    ``episodes: Input should be greater than 0`` (``--episodes: ...`` with `as_option`)."""
+    first = err.errors()[0]
+    field = ".".join(str(p) for p in first["loc"])
+    message = first["msg"].removeprefix("Value error, ")
+    if not field:
+        return message
+    if as_option:
+        field = "--" + field.replace("_", "-")
+    return f"{field}: {message}"
 
 
 def parse_resolution(text: str) -> tuple[int, int]:

@@ -68,6 +68,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from pydantic import ValidationError
 
+    from bicoord_drake.config import validation_message
     from bicoord_drake.policies import PolicyLoadError, load_policy
     from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate, find_episodes
     from bicoord_drake.runner.generate import format_failure
@@ -103,10 +104,7 @@ def main(argv: list[str] | None = None) -> int:
             max_tries=args.max_tries,
         )
     except ValidationError as err:
-        e = err.errors()[0]
-        field = ".".join(str(p) for p in e["loc"])
-        message = e["msg"].removeprefix("Value error, ")
-        return usage(f"--{field.replace('_', '-')}: {message}" if field else message)
+        return usage(validation_message(err, as_option=True))
     total = config.episodes
     try:
         load_policy(config.policy)  # fail fast, before any simulation

@@ -60,6 +60,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from pydantic import ValidationError
 
+    from bicoord_drake.config import validation_message
     from bicoord_drake.runner.generate import GenerateConfig, format_failure, generate
     from bicoord_drake.tasks import list_tasks
 
@@ -87,9 +88,7 @@ def main(argv: list[str] | None = None) -> int:
             workers=args.workers,
         )
     except ValidationError as err:
-        e = err.errors()[0]
-        field = ".".join(str(p) for p in e["loc"])
-        print(f"error: --{field.replace('_', '-')}: {e['msg']}", file=sys.stderr)
+        print(f"error: {validation_message(err, as_option=True)}", file=sys.stderr)
         return 2
 
     from tqdm import tqdm

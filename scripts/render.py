@@ -41,7 +41,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--depth", action="store_true", help="also write 16-bit depth PNGs (mm)")
     args = parser.parse_args(argv)
 
-    from bicoord_drake.config import CameraConfig, StationConfig, parse_resolution
+    from bicoord_drake.config import (
+        CameraConfig,
+        StationConfig,
+        parse_resolution,
+        validation_message,
+    )
     from bicoord_drake.models.scene import demo_scene
     from bicoord_drake.sim.snapshot import render_snapshot
 
@@ -52,7 +57,8 @@ def main(argv: list[str] | None = None) -> int:
             raise ValueError(f"unknown pose {args.pose!r}; choose one of: {', '.join(ARM_POSES)}")
         config = StationConfig(cameras=CameraConfig(width=width, height=height, depth=args.depth))
     except (ValueError, ValidationError) as err:
-        print(f"error: {_one_line(err)}", file=sys.stderr)
+        message = validation_message(err) if isinstance(err, ValidationError) else str(err)
+        print(f"error: {message}", file=sys.stderr)
         return 2
     try:
         start = time.perf_counter()
@@ -64,13 +70,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:>20}: {path}")
     print(f"rendered scene {args.scene!r} in {time.perf_counter() - start:.1f} s")
     return 0
-
-
-def _one_line(err: Exception) -> str:
-    if isinstance(err, ValidationError):
-        e = err.errors()[0]
-        return f"{'.'.join(str(p) for p in e['loc'])}: {e['msg']}"
-    return str(err)
 
 
 if __name__ == "__main__":
