@@ -19,6 +19,8 @@ and SSR sums only stages k and later (the earlier ones were given).
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import json
 import os
 import re
@@ -296,10 +298,23 @@ def cache_dir() -> Path:
     return Path(root)
 
 
+@functools.cache
+def code_fingerprint() -> str:
+    """A short hash of the package's Python sources: changes whenever any expert, planner or
+    simulation code changes, released or not."""
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:12]
+
+
 class ExpertCheck:
     """Whether the expert solves (task, seed) in physics, cached in a small JSON file.
 
-    The key holds the control rate and the package version, so a changed expert is rechecked.
+    The key holds the control rate, the package version and :func:`code_fingerprint`, so an
+    expert changed in any way (an edited checkout included) is checked again.
     """
 
     def __init__(self, task: Task, fps: float, path: Path | None = None) -> None:
@@ -311,7 +326,7 @@ class ExpertCheck:
             self._cache = {}
 
     def _key(self, seed: int) -> str:
-        return f"{seed}@{self.fps:g}Hz@{package_version()}"
+        return f"{seed}@{self.fps:g}Hz@{package_version()}+{code_fingerprint()}"
 
     def __call__(self, seed: int) -> tuple[bool, str | None]:
         """(ok, reason) for `seed`, from the cache or by running the expert."""

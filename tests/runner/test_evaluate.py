@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import bicoord_drake.runner.evaluate as evaluate_module
 from bicoord_drake.data.episode import EpisodeMeta, EpisodeRecorder
 from bicoord_drake.env import make_env
 from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate, evaluation_seed
@@ -123,6 +124,10 @@ def test_seeds_the_expert_fails_are_skipped_counted_and_cached(tmp_path, monkeyp
     assert calls == [100000, 100001, 100002]
     cached = Path(os.environ["BICOORD_CACHE"]) / "expert_check" / "jigsaw.json"
     assert len(json.loads(cached.read_text())) == 3
+    # Edited code (a new fingerprint) checks the expert again.
+    monkeypatch.setattr(evaluate_module, "code_fingerprint", lambda: "edited")
+    evaluate(cfg)
+    assert calls == [100000, 100001, 100002] * 2
 
 
 def test_replay_and_stage_rollouts_on_demonstrations(tmp_path, demo_dir):
