@@ -268,7 +268,7 @@ class Env:
         start = int(episode.stages[stage][0])
         action = np.asarray(episode.initial_action[stage], dtype=float)
         before = episode.joint_action[start - 2] if start >= 2 else episode.initial_action[0]
-        restore_state(self.sim, episode.initial_state[stage], action, before, start)
+        self.sim.restore(episode.initial_state[stage], action, before, start)
         self.action = action.copy()
         self.start_frame = start
 
@@ -386,38 +386,6 @@ def _already_counted(state: WorldState) -> bool:
 def _given(stage: Stage) -> Stage:
     """`stage` as already counted (a stage reset starts after it): always true, latched."""
     return dataclasses.replace(stage, predicate=_already_counted, kind="transient")
-
-
-def restore_state(
-    sim: Simulation,
-    plant_state: np.ndarray,
-    action: np.ndarray,
-    previous_action: np.ndarray,
-    frame: int,
-) -> None:
-    """Set `sim` to recorded frame `frame`: plant ``[q; v]``, the action in effect (latched at
-    the previous control step, interpolated from `previous_action`), time and step count.
-
-    Replaying the recorded actions from `frame` then reproduces the recording exactly.
-    """
-    st = sim.station
-    x = np.asarray(plant_state, dtype=float)
-    n = st.plant.num_multibody_states()
-    if x.shape != (n,):
-        raise ValueError(f"plant state must have shape ({n},), got {x.shape}: another scene?")
-    if frame < 1:
-        raise ValueError("restore a frame >= 1 (frame 0 is reset())")
-    period = st.config.control_period
-    sim.context.SetTime(frame * period)
-    st.plant.SetPositionsAndVelocities(sim.plant_context, x)
-    # The interpolator's discrete state [previous, current, latch time] as it was at `frame`.
-    interp = st.interpolator.GetMyMutableContextFromRoot(sim.context)
-    interp.get_mutable_discrete_state(0).set_value(
-        np.concatenate([previous_action, action, [(frame - 1) * period]])
-    )
-    sim._action_port.FixValue(sim.context, np.asarray(action, dtype=float))
-    sim.simulator.Initialize()
-    sim._steps = frame
 
 
 class _EndposeIK:

@@ -50,6 +50,39 @@ class Simulation:
         self.simulator.Initialize()
         self._steps = 0
 
+    def restore(
+        self,
+        plant_state: np.ndarray,
+        action: np.ndarray,
+        previous_action: np.ndarray,
+        frame: int,
+    ) -> None:
+        """Set the simulation to recorded control step `frame` (>= 1): plant ``[q; v]``, the
+        action in effect (latched at the previous control step, interpolated from
+        `previous_action`), time and step count.
+
+        Replaying the recorded actions from `frame` then reproduces the recording exactly (the
+        stage resets of :mod:`bicoord_drake.env`). Frame 0 is :meth:`reset`."""
+        st = self.station
+        x = np.asarray(plant_state, dtype=float)
+        n = st.plant.num_multibody_states()
+        if x.shape != (n,):
+            raise ValueError(f"plant state must have shape ({n},), got {x.shape}: another scene?")
+        if frame < 1:
+            raise ValueError("restore a frame >= 1 (frame 0 is reset())")
+        action, previous_action = self._check(action), self._check(previous_action)
+        period = st.config.control_period
+        self.context.SetTime(frame * period)
+        st.plant.SetPositionsAndVelocities(self.plant_context, x)
+        # The interpolator's discrete state [previous, current, latch time] as it was at `frame`.
+        interp = st.interpolator.GetMyMutableContextFromRoot(self.context)
+        interp.get_mutable_discrete_state(0).set_value(
+            np.concatenate([previous_action, action, [(frame - 1) * period]])
+        )
+        self._action_port.FixValue(self.context, action)
+        self.simulator.Initialize()
+        self._steps = int(frame)
+
     def step(self, action: np.ndarray) -> None:
         """Apply `action` for one control period (first-order hold from the previous one)."""
         self._action_port.FixValue(self.context, self._check(action))

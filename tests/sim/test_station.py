@@ -80,6 +80,30 @@ def test_same_actions_give_identical_states():
         np.testing.assert_array_equal(o1[name], o2[name])
 
 
+def test_restore_continues_a_run_exactly(sim):
+    """Restoring the plant state and actions of step k, then stepping, matches the run that
+    went through step k (what stage resets rely on)."""
+    home = sim.station.embodiment.home_action()
+    actions = [home + 0.05 * k * np.r_[np.ones(6), 0.0, -np.ones(6), 0.0] for k in range(6)]
+    sim.reset(home)
+    states = []
+    for a in actions:
+        sim.step(a)
+        states.append(sim.station.plant.GetPositionsAndVelocities(sim.plant_context).copy())
+    k = 3
+    sim.reset(home)
+    sim.restore(states[k - 1], actions[k - 1], actions[k - 2], k)
+    assert sim.steps == k and sim.time == pytest.approx(k * sim.station.config.control_period)
+    for a in actions[k:]:
+        sim.step(a)
+    final = sim.station.plant.GetPositionsAndVelocities(sim.plant_context)
+    np.testing.assert_array_equal(final, states[-1])
+    with pytest.raises(ValueError, match="shape"):
+        sim.restore(states[0][:-1], home, home, 1)
+    with pytest.raises(ValueError, match="frame"):
+        sim.restore(states[0], home, home, 0)
+
+
 @pytest.mark.parametrize("bad", [np.zeros(13), np.full(14, np.nan)])
 def test_bad_actions_are_refused_and_not_executed(sim, bad):
     sim.reset()
