@@ -42,7 +42,6 @@ counted from the reset; ``stage=0`` is a stage rollout from the initial state.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 from typing import Any, Literal
 
@@ -212,8 +211,7 @@ class Env:
         else:
             self._restore(episode, stage)
         self.start_stage = stage
-        stages = [_given(s) if j < stage else s for j, s in enumerate(self._stages)]
-        self.monitor = StageMonitor(stages)
+        self.monitor = StageMonitor(self._stages, given=stage)
         rng = np.random.default_rng(self.seed)
         self.instruction = self.task.instruction(rng, self.split)
         self.steps = 0
@@ -379,15 +377,6 @@ class Env:
 
 
 # --------------------------------------------------------------------------- helpers
-def _already_counted(state: WorldState) -> bool:
-    return True
-
-
-def _given(stage: Stage) -> Stage:
-    """`stage` as already counted (a stage reset starts after it): always true, latched."""
-    return dataclasses.replace(stage, predicate=_already_counted, kind="transient")
-
-
 class _EndposeIK:
     """TCP pose (xyz + wxyz) -> one arm's joint angles, nearest to a seed."""
 

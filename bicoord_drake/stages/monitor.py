@@ -30,8 +30,13 @@ _FULL = 1.0 - 1e-9
 class StageMonitor:
     """Stage predicates over a rollout or a demonstration (see the module docstring)."""
 
-    def __init__(self, stages: Sequence[Stage]) -> None:
+    def __init__(self, stages: Sequence[Stage], *, given: int = 0) -> None:
+        """`given`: the first `given` stages count as done without being evaluated (a rollout
+        reset to the start of stage `given`, after them)."""
         self.stages: tuple[Stage, ...] = tuple(stages)
+        if not 0 <= given <= len(self.stages):
+            raise ValueError(f"given must be in [0, {len(self.stages)}], got {given}")
+        self.given = int(given)
         self.dependencies = resolve_dependencies(self.stages)
         self.reset()
 
@@ -46,8 +51,14 @@ class StageMonitor:
         self._history.append(self.evaluate(state))
 
     def evaluate(self, state: WorldState) -> np.ndarray:
-        """Each stage predicate's value on `state`, clipped to [0, 1] (no bookkeeping)."""
-        return np.array([min(max(float(s.predicate(state)), 0.0), 1.0) for s in self.stages])
+        """Each stage predicate's value on `state`, clipped to [0, 1] (no bookkeeping); given
+        stages are 1 and their predicates are not called."""
+        return np.array(
+            [
+                1.0 if j < self.given else min(max(float(s.predicate(state)), 0.0), 1.0)
+                for j, s in enumerate(self.stages)
+            ]
+        )
 
     def finish(self, state: WorldState | None = None) -> None:
         """End the rollout: persistent stages are judged on `state` (default: the last update)."""

@@ -67,6 +67,24 @@ def test_dependencies_gate_counting():
     assert m.completed() == [False, True] and m.score() == pytest.approx(0.6)
 
 
+def test_given_stages_count_without_being_evaluated():
+    def never_called(state):
+        raise AssertionError("a given stage's predicate must not be evaluated")
+
+    stages = [
+        Stage("lift", "grasp", "grasp", 0.4, never_called, "persistent"),
+        Stage("place", "place", "hold", 0.6, pred("b"), "persistent"),
+    ]
+    FLAGS.clear()
+    monitor = StageMonitor(stages, given=1)
+    monitor.update(flags())
+    assert monitor.completed() == [True, False] and monitor.score() == pytest.approx(0.4)
+    monitor.update(flags(b=True))
+    assert monitor.completed() == [True, True] and monitor.success
+    with pytest.raises(ValueError, match="given"):
+        StageMonitor(stages, given=3)
+
+
 def test_explicit_dependencies_skip_stages():
     stages = [
         Stage("a", "", "", 0.2, pred("a"), "transient"),
