@@ -34,9 +34,11 @@ import numpy as np
 from pydrake.math import RigidTransform, RotationMatrix
 
 from bicoord_drake.models.embodiment import Embodiment, GripperSpec, Side
+from bicoord_drake.models.geometry import Primitive
 from bicoord_drake.models.objects import (
     BowlShape,
     BoxShape,
+    CompoundShape,
     CylinderShape,
     SceneObject,
     SphereShape,
@@ -432,26 +434,73 @@ def grasp_candidates(
     base: np.ndarray | None = None,
     kinds: Sequence[GraspKind] | None = None,
     params: GraspParams = GraspParams(),
+    parts: Sequence[int] | None = None,
 ) -> list[Grasp]:
     """All grasp candidates of a scene object (at `X_WO`, default its initial pose), best first.
 
-    ``PlanningError('no_grasp')`` when none fits the gripper.
+    A :class:`CompoundShape` is grasped by its parts (`parts`: indices into ``shape.parts``,
+    default all; see :func:`compound_grasps`). ``PlanningError('no_grasp')`` when none fits the
+    gripper.
     """
     X = pose_to_transform(obj) if X_WO is None else X_WO
     shape = obj.shape
-    if isinstance(shape, BoxShape):
-        grasps = box_grasps(X, shape, gripper, base=base, params=params)
-    elif isinstance(shape, CylinderShape):
-        grasps = cylinder_grasps(X, shape, gripper, base=base, params=params)
-    elif isinstance(shape, SphereShape):
-        grasps = sphere_grasps(X, shape, gripper, base=base, params=params)
+    if isinstance(shape, CompoundShape):
+        grasps = compound_grasps(X, shape, gripper, base=base, params=params, parts=parts)
+    elif parts is not None:
+        raise ValueError(f"parts= applies to compound shapes, not {shape.kind}")
     else:
-        grasps = bowl_rim_grasps(X, shape, gripper, base=base, params=params)
+        grasps = _shape_grasps(X, shape, gripper, base, params)
     if kinds is not None:
         grasps = [g for g in grasps if g.kind in kinds]
     if not grasps:
         raise PlanningError("no_grasp", f"no grasp of {obj.name!r} ({shape.kind}) fits the gripper")
     return grasps
+
+
+def _shape_grasps(X_WO, shape, gripper, base, params) -> list[Grasp]:
+    if isinstance(shape, BoxShape):
+        return box_grasps(X_WO, shape, gripper, base=base, params=params)
+    if isinstance(shape, CylinderShape):
+        return cylinder_grasps(X_WO, shape, gripper, base=base, params=params)
+    if isinstance(shape, SphereShape):
+        return sphere_grasps(X_WO, shape, gripper, base=base, params=params)
+    return bowl_rim_grasps(X_WO, shape, gripper, base=base, params=params)
+
+
+def part_shape(part: Primitive) -> BoxShape | CylinderShape | SphereShape:
+    """The shape of one part of a compound (a capsule is grasped like its cylinder)."""
+    if part.kind == "box":
+        return BoxShape(size=part.size)
+    if part.kind == "sphere":
+        return SphereShape(radius=part.size[0])
+    return CylinderShape(radius=part.size[0], length=part.size[1])
+
+
+def compound_grasps(
+    X_WO: RigidTransform,
+    shape: CompoundShape,
+    gripper: GripperSpec,
+    *,
+    base: np.ndarray | None = None,
+    params: GraspParams = GraspParams(),
+    parts: Sequence[int] | None = None,
+) -> list[Grasp]:
+    """Grasps of the parts of a compound object at `X_WO`, best first, with ``X_OG`` in the
+    object's frame (so holding any of them holds the object).
+
+    Each part is grasped as if alone: a grasp near another part may touch it. Choose the parts
+    meant for the hand with `parts` (indices into ``shape.parts``)."""
+    indices = range(len(shape.parts)) if parts is None else parts
+    X_OW = X_WO.inverse()
+    grasps = []
+    for index in indices:
+        if not 0 <= index < len(shape.parts):
+            raise ValueError(f"part {index} out of range: the shape has {len(shape.parts)} parts")
+        part = shape.parts[index]
+        X_WP = X_WO @ RigidTransform(part.pose.matrix())
+        for g in _shape_grasps(X_WP, part_shape(part), gripper, base, params):
+            grasps.append(Grasp(g.kind, g.X_WG, g.X_WPre, X_OW @ g.X_WG, g.width, g.score))
+    return sorted(grasps, key=lambda g: -g.score)
 
 
 # --------------------------------------------------------------------------------------------

@@ -13,16 +13,14 @@ from bicoord_drake.models.objects import (
     CompoundShape,
     CylinderShape,
     SceneObject,
-    SphereShape,
 )
 from bicoord_drake.models.scene import TABLE_TOP, Scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import (
     Grasp,
     arm_base,
-    cylinder_grasps,
+    compound_grasps,
     naturalness,
-    sphere_grasps,
     symmetric_yaws,
 )
 from bicoord_drake.planning.ik import TcpTarget
@@ -271,6 +269,10 @@ def _square(name: str, xy: Sequence[float]) -> SceneObject:
     )
 
 
+#: Indices of the handle and the head in ``mic_shape().parts``.
+HANDLE_PART, HEAD_PART = 0, 1
+
+
 def mic_shape() -> CompoundShape:
     """Handle cylinder and ball head; the frame is at the centre of the handle's bottom."""
     return CompoundShape(
@@ -306,15 +308,9 @@ def mic_grasps(skills: Skills, side: str, X_WO: RigidTransform, kind: str = "hea
     across the ball head, ``handle`` = horizontal approach onto the handle's middle."""
     gripper = skills.model.embodiment.arm.gripper
     base = arm_base(skills.model.embodiment, side)
-    if kind == "head":
-        X_WP = X_WO @ RigidTransform([0.0, 0.0, HEAD_Z])
-        grasps = sphere_grasps(X_WP, SphereShape(radius=HEAD_RADIUS), gripper, base=base)
-    else:
-        X_WP = X_WO @ RigidTransform([0.0, 0.0, HANDLE_LENGTH / 2])
-        handle = CylinderShape(radius=HANDLE_RADIUS, length=HANDLE_LENGTH)
-        grasps = cylinder_grasps(X_WP, handle, gripper, base=base, kinds=("side",))
-    X_OW = X_WO.inverse()
-    return [Grasp(g.kind, g.X_WG, g.X_WPre, X_OW @ g.X_WG, g.width, g.score) for g in grasps]
+    part = HEAD_PART if kind == "head" else HANDLE_PART
+    grasps = compound_grasps(X_WO, mic_shape(), gripper, base=base, parts=[part])
+    return grasps if kind == "head" else [g for g in grasps if g.kind == "side"]
 
 
 def _pick_mic(skills: Skills, side: str, name: str, *, lift: float = 0.10) -> ArmPlan:

@@ -7,10 +7,11 @@ import pytest
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from bicoord_drake.models.embodiment import get_embodiment
-from bicoord_drake.models.geometry import Pose
+from bicoord_drake.models.geometry import Pose, Primitive
 from bicoord_drake.models.objects import (
     BowlShape,
     BoxShape,
+    CompoundShape,
     CylinderShape,
     SceneObject,
     SphereShape,
@@ -193,6 +194,30 @@ def test_sphere_top_grasps(gripper):
     for g in grasps:
         assert np.allclose(g.approach, DOWN)
         assert g.width == pytest.approx(0.06)
+
+
+def test_compound_grasps_hold_the_object_by_a_part(gripper):
+    stick = Primitive(kind="cylinder", size=(0.012, 0.11), pose=Pose(xyz=(0.0, 0.0, 0.055)))
+    ball = Primitive(kind="sphere", size=(0.025,), pose=Pose(xyz=(0.0, 0.0, 0.125)))
+    mic = SceneObject(name="mic", shape=CompoundShape(parts=(stick, ball)))
+    X_WO = RigidTransform(RollPitchYaw(0.0, 0.0, 0.4), [0.1, 0.0, TABLE_TOP])
+    every = grasp_candidates(mic, gripper, X_WO=X_WO)
+    head = grasp_candidates(mic, gripper, X_WO=X_WO, parts=[1])
+    alone = sphere_grasps(
+        X_WO @ RigidTransform([0.0, 0.0, 0.125]), SphereShape(radius=0.025), gripper
+    )
+    assert len(head) == len(alone) and len(every) > len(head)
+    assert [g.score for g in every] == sorted((g.score for g in every), reverse=True)
+    for g, h in zip(head, alone, strict=True):
+        assert g.X_WG.IsExactlyEqualTo(h.X_WG) and g.width == h.width
+        # X_OG is in the object's frame: holding the part holds the object
+        assert (X_WO @ g.X_OG).IsNearlyEqualTo(g.X_WG, 1e-12)
+    with pytest.raises(ValueError, match="out of range"):
+        grasp_candidates(mic, gripper, parts=[2])
+    with pytest.raises(ValueError, match="compound"):
+        grasp_candidates(
+            SceneObject(name="b", shape=BoxShape(size=(0.04,) * 3)), gripper, parts=[0]
+        )
 
 
 def test_bowl_rim_fingers_straddle_the_wall(gripper):
