@@ -564,13 +564,16 @@ class Skills:
         hold_steps: int = 8,
         back: bool = True,
         ignore: Iterable[str] = (),
+        pivot: Sequence[float] | None = None,
     ) -> ArmPlan:
         """Tilt the held container by `angle` (rad) about the horizontal axis through its rim
         point in `direction`, hold `hold_steps`, and tilt back.
 
         The rim point stays fixed, so the content leaves over that lip. The TCP follows the exact
         rotation (IK at every control sample). Without a `direction`, the horizontal axes are
-        tried beside the grasp first (toward the other arm first), never over the gripper."""
+        tried beside the grasp first (toward the other arm first), never over the gripper.
+        `pivot` (a world point, e.g. a spout's lip) replaces the rim point: the container turns
+        about the horizontal axis through it, across `direction`."""
         held = self.model.held.get(side)
         if held is None:
             raise PlanningError("gripper_empty", f"{side} holds no container to pour from")
@@ -590,7 +593,7 @@ class Skills:
         for d in options:
             saved = self.q.copy()
             try:
-                return self._pour(side, held.name, angle, d, hold_steps, back, ignore)
+                return self._pour(side, held.name, angle, d, hold_steps, back, ignore, pivot)
             except PlanningError as err:
                 self.q = saved
                 reasons.append(err.reason)
@@ -599,7 +602,7 @@ class Skills:
             f"{side} cannot tilt {held.name!r} by {angle:.2f} rad ({', '.join(reasons)})",
         )
 
-    def _pour(self, side, name, angle, d, hold_steps, back, ignore) -> ArmPlan:
+    def _pour(self, side, name, angle, d, hold_steps, back, ignore, pivot=None) -> ArmPlan:
         X_WO = self.model.held_pose(side, self.q)
         shape = self.model.object(name).shape
         up = X_WO.rotation().col(2)
@@ -607,8 +610,10 @@ class Skills:
         if np.linalg.norm(d) < 1e-6:
             raise ValueError("the pour direction must not be parallel to the container axis")
         d /= np.linalg.norm(d)
-        top, radius = _rim(shape, X_WO.rotation().matrix(), d)
-        pivot = X_WO.translation() + top * up + radius * d
+        if pivot is None:
+            top, radius = _rim(shape, X_WO.rotation().matrix(), d)
+            pivot = X_WO.translation() + top * up + radius * d
+        pivot = np.asarray(pivot, dtype=float)
         axis = np.cross(up, d)  # a positive turn about it tips the mouth toward d
         X_WT0 = self.model.tcp_pose(self.q, side)
 

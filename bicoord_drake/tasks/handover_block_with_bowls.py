@@ -399,28 +399,15 @@ def _misalignment(view: WorldView) -> str | None:
 
 
 def _pour_at_lip(skills: Skills, angle: float, hold_steps: int) -> ArmPlan:
-    """Tilt the pouring bowl by `angle` about the horizontal axis through its spout lip (the
-    lip stays put), hold, and tilt back: :meth:`Skills.pour` with a pivot the skill cannot
-    derive from a compound shape."""
-    from bicoord_drake.planning.skills import _axis_angle
-
+    """Tilt the pouring bowl by `angle` toward its spout about the horizontal axis through the
+    spout's lip (the lip stays put), hold, and tilt back."""
     X_WO = skills.model.held_pose("left", skills.q)
-    up = X_WO.rotation().col(2)
-    d = X_WO.rotation().col(0)
-    d = d - (d @ up) * up
-    d /= np.linalg.norm(d)
-    pivot = X_WO @ LIP_POINT
-    axis = np.cross(up, d)
-    X_WT0 = skills.model.tcp_pose(skills.q, "left")
-
-    def turned(a: float) -> RigidTransform:
-        R = RotationMatrix(_axis_angle(axis, a))
-        return RigidTransform(R @ X_WT0.rotation(), pivot + R @ (X_WT0.translation() - pivot))
-
-    reach = float(np.linalg.norm(X_WT0.translation() - pivot)) * abs(angle)
-    tilt = skills._track("left", lambda s: turned(s * angle), reach, angle, label="tilt")
-    hold = skills.hold("left", hold_steps, label="pour")
-    back = skills._track("left", lambda s: turned((1 - s) * angle), reach, angle, label="tilt back")
-    plan = tilt.then(hold, back)
+    plan = skills.pour(
+        "left",
+        angle,
+        direction=X_WO.rotation().col(0),
+        pivot=X_WO @ LIP_POINT,
+        hold_steps=hold_steps,
+    )
     plan.label = "pour pour_bowl over its spout"
     return plan
