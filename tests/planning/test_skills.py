@@ -124,6 +124,21 @@ def test_pour_turns_the_bowl_about_its_rim_and_back():
     assert np.array_equal(skills.q, np.r_[pour.q[-1], q0[6:]])
 
 
+def test_pour_about_a_given_pivot_keeps_that_point_still():
+    skills = Skills(PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75)
+    skills.pick("left", "bowl", kinds=["rim"], lift=0.12)
+    X0 = skills.model.held_pose("left", skills.q)
+    q0 = skills.q.copy()
+    d = np.array([1.0, 0.0, 0.0])
+    pivot = X0.translation() + 0.06 * X0.rotation().col(2) + 0.03 * d  # inside the rim
+    pour = skills.pour("left", np.radians(45), direction=d, pivot=pivot, hold_steps=3)
+    poses = [skills.model.held_pose("left", np.r_[q6, q0[6:]]) for q6 in pour.q]
+    p_O = X0.inverse() @ pivot
+    assert max(np.linalg.norm(X @ p_O - pivot) for X in poses) < 1e-3
+    mouth = [X.rotation().col(2) @ d for X in poses]
+    assert max(mouth) == pytest.approx(np.sin(np.radians(45)), abs=1e-3)  # tipped toward d
+
+
 def test_push_slides_a_cube_with_a_held_stick_in_physics():
     stick = SceneObject(
         name="stick",
