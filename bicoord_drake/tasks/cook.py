@@ -34,8 +34,9 @@ from bicoord_drake.tasks.registry import register_task
 
 ROLLS = ("roll_0", "roll_1")
 ROLL_RADIUS, ROLL_LENGTH, ROLL_MASS = 0.02, 0.08, 0.025
-#: Roll yaw range (rad, its axis from world x). Near 0 the throw needs the gripper's x and z
-#: axes still while its z axis points along the throw: the joints cannot reach 0.78 m/s there.
+#: Roll yaw range (rad, its axis from world x). Kept from the first design, where yaws near 0
+#: could not be thrown (the joints could not reach 0.78 m/s with the gripper's z axis along the
+#: throw); not re-measured since the throw turns the roll across the flight.
 ROLL_YAW = (0.15, 0.45)
 #: The skillet: a shallow pan with straight 12 mm walls, held by its rim (see the class doc).
 SKILLET = BowlShape(radius=0.10, base_radius=0.10, height=0.045, wall=0.012, segments=20)
@@ -51,8 +52,8 @@ SKILLET_FRICTION = 0.3
 #: (``Skills.toss``), so they come to lie side by side.
 ROLL_AIM, ROLL_SPACING, ROLL_REACH = 0.035, 0.045, 0.045
 #: The plate: 24 cm with a low rim (the rolls leave the pan at up to ~0.7 m/s and must stop on
-#: it). Shifted toward the robot from the reference layout (x in
-#: [-0.05, 0], y in [0.15, 0.20]): the right arm cannot tip the held skillet over it there.
+#: it). Shifted toward the robot from the reference layout (x in [-0.05, 0], y in
+#: [0.15, 0.20]): the right arm cannot tip the held skillet over it there.
 PLATE = BowlShape(radius=0.12, base_radius=0.105, height=0.02, wall=0.006, segments=24)
 PLATE_X, PLATE_Y = (-0.05, -0.02), (0.03, 0.06)
 #: The stove: a fixed red 10 cm square under the catch.
@@ -70,14 +71,17 @@ RELEASES = (
     ((-0.10, -0.05, 0.28), 1.0),
     ((-0.14, -0.05, 0.22), 1.2),
 )
-#: Steeper throws (release, speed, angle in rad) tried after RELEASES: a steeper entry keeps the
-#: 8 cm roll clear of the catcher's gripper on the far rim (not yet measured in physics).
+#: Steeper throws (release, speed, angle in rad) tried after RELEASES (a steeper entry keeps the
+#: roll clear of the catcher's gripper on the far rim), only when none of RELEASES plans.
 STEEP_RELEASES = (
     ((-0.10, -0.05, 0.25), 1.1, np.radians(55)),
     ((-0.08, -0.05, 0.25), 1.1, np.radians(60)),
 )
 #: Shake: amplitude (m) along world x and number of full back-and-forth cycles.
 SHAKE_AMPLITUDE, SHAKE_CYCLES = 0.05, 2
+#: Serve: the gripper may sit at most this far toward the lip (cosine between the pan centre ->
+#: gripper and pour directions); rolls leaving the pan must not run into it.
+POUR_GRIP_ALIGNMENT = 0.35
 #: Serve: pour directions (the most reachable first) and tilt angles tried (first that plans
 #: wins), height of the pan's bottom above the plate's rim when the tilt starts, how far past
 #: the plate's centre the lip is (negative: short of it; the rolls slide out and land beyond
@@ -86,9 +90,6 @@ POUR_DIRECTIONS = tuple(
     (float(np.cos(np.radians(a))), float(np.sin(np.radians(a))), 0.0)
     for a in (0, 225, 45, 315, 180, 270, 90, 135)
 )
-#: Serve: the gripper may sit at most this far toward the lip (cosine between the pan centre ->
-#: gripper and pour directions); rolls leaving the pan must not run into it.
-POUR_GRIP_ALIGNMENT = 0.35
 POUR_ANGLES = (2.5, 2.3, 2.1)
 POUR_HEIGHT = 0.015
 POUR_LIP_OFFSET = -0.075
