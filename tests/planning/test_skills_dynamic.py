@@ -18,7 +18,7 @@ from bicoord_drake.models.objects import BowlShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.skills import Skills
+from bicoord_drake.planning.skills import Motion, Skills
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import build_station
 
@@ -80,15 +80,22 @@ def _crossing_error(path: np.ndarray, predicted: np.ndarray) -> float:
     return float("nan")
 
 
-def toss_trial(seed: int) -> dict:
-    """Left picks the cube, right lifts the bowl by its rim; left throws the cube into it."""
-    scene = toss_scene(seed)
+def ready_to_toss(scene: Scene) -> tuple[Skills, Motion]:
+    """A planner in which the left arm holds the cube and the right the bowl (lifted by its
+    rim), and the motion that got there."""
     skills = Skills(PlanningModel(scene), speed=SPEED)
-    sim = Simulation(build_station(scene, StationConfig(render=False)))
     prep = skills.merge(
         skills.pick("left", "cube", kinds=["top"]),
         skills.pick("right", "bowl", kinds=["rim"], lift=0.1),
     )
+    return skills, prep
+
+
+def toss_trial(seed: int) -> dict:
+    """Left picks the cube, right lifts the bowl by its rim; left throws the cube into it."""
+    scene = toss_scene(seed)
+    skills, prep = ready_to_toss(scene)
+    sim = Simulation(build_station(scene, StationConfig(render=False)))
     toss = skills.toss("left", "right")
     _run(sim, prep.actions())
     path = []
@@ -204,12 +211,7 @@ def test_handover_plan_meets_the_contract():
 
 
 def test_toss_plan_meets_the_contract():
-    scene = toss_scene(0)
-    skills = Skills(PlanningModel(scene), speed=SPEED)
-    skills.merge(
-        skills.pick("left", "cube", kinds=["top"]),
-        skills.pick("right", "bowl", kinds=["rim"], lift=0.1),
-    )
+    skills, _ = ready_to_toss(toss_scene(0))
     held = skills.model.held["left"]
     toss = skills.toss("left", "right")
     info, dt = toss.info, skills.dt
@@ -243,12 +245,7 @@ def test_toss_plan_meets_the_contract():
 
 
 def test_toss_levels_a_sagging_bowl_and_lands_at_the_aim():
-    scene = toss_scene(0)
-    skills = Skills(PlanningModel(scene), speed=SPEED)
-    skills.merge(
-        skills.pick("left", "cube", kinds=["top"]),
-        skills.pick("right", "bowl", kinds=["rim"], lift=0.1),
-    )
+    skills, _ = ready_to_toss(toss_scene(0))
     # The bowl sags 6 degrees in the rim grasp (as measured in physics after a lift).
     X_WB = skills.model.held_pose("right", skills.q)
     tilt = RotationMatrix.MakeXRotation(np.radians(6)) @ RotationMatrix.MakeYRotation(0.05)
