@@ -1087,7 +1087,7 @@ class Skills:
                 "catch_too_steep", f"the object would hit the rim ({reach:.3f} m from the axis)"
             )
         p_bowl = np.array([*(centre[:2] - aim[:2]), z_bowl])
-        q_catch = self._catch_pose(catcher, bowl, p_bowl, direction)
+        q_catch = self._catch_pose(catcher, bowl, R_WB, p_bowl, direction)
         q_start, o_start = self.q.copy(), dict(self.opening)
         # The thrower: windup (catcher still), then the throw with the catcher moving in.
         windup = self.move(thrower, q_wind, label="windup")
@@ -1156,15 +1156,15 @@ class Skills:
         )
         return motion
 
-    def _catch_pose(self, catcher, bowl, p_bowl: np.ndarray, direction: np.ndarray) -> np.ndarray:
-        """Catcher joints holding its bowl level with the bowl frame at `p_bowl`.
-
-        The bowl may turn about its axis. A bowl that sags in the grasp (as measured by
-        :meth:`refresh_grasps`) is levelled by tilting the gripper. The gripper goes to the far
+    def _catch_pose(
+        self, catcher, bowl, R_WB: RotationMatrix, p_bowl: np.ndarray, direction: np.ndarray
+    ) -> np.ndarray:
+        """Catcher joints holding its bowl with the bowl frame at `p_bowl`, turned from `R_WB`
+        (levelled: a bowl that sags in the grasp, as measured by :meth:`refresh_grasps`, is
+        levelled by tilting the gripper) about the vertical. The gripper goes to the far
         side of the flight: its body spans the rim above the bowl, so the object must not pass
         over it on the way in."""
         X_BT = bowl.X_GO.inverse() @ RigidTransform([self.model.embodiment.arm.gripper.tcp_x, 0, 0])
-        R_WB = _levelled(self.model.held_pose(catcher, self.q).rotation())
         base = arm_base(self.model.embodiment, catcher)
         toward_base = (base - p_bowl)[:2] / np.linalg.norm((base - p_bowl)[:2])
         options = []
@@ -1407,7 +1407,7 @@ def _least_spin_velocity(
     point velocity `v`, no turn about the gripper's x and z axes (a loosened object leaves
     without being turned against the pads), and the least turn about the finger axis (a
     tumbling object lands on an edge or an end) that keeps every joint within `cap` (rad/s);
-    without `least_spin`, the minimum-norm joint velocity (if within `cap`).
+    without `least_spin`, the one nearest the minimum-norm joint velocity within `cap`.
 
     Five equations leave one free direction n: qd = qd0 + t n, and the finger-axis rate is
     linear in t, so the best t is the unconstrained one clipped to the interval the caps allow.
