@@ -6,7 +6,13 @@ success, so labels and scores can never disagree.
 
 from bicoord_drake.stages import predicates
 from bicoord_drake.stages.monitor import StageMonitor, check_rows, stage_index_from_rows
-from bicoord_drake.stages.stage import Stage, StageKind, WorldState, resolve_dependencies
+from bicoord_drake.stages.stage import (
+    Stage,
+    StageKind,
+    WorldState,
+    resolve_dependencies,
+    stage_score,
+)
 
 __all__ = [
     "Stage",
@@ -17,4 +23,5 @@ __all__ = [
     "predicates",
     "resolve_dependencies",
     "stage_index_from_rows",
+    "stage_score",
 ]
