@@ -47,7 +47,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from bicoord_drake.config import CameraConfig, StationConfig, parse_resolution
+from bicoord_drake.config import CameraConfig, StationConfig, check_seed, parse_resolution
 from bicoord_drake.data.episode import Episode, read_episode
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.sim.simulation import Simulation
@@ -164,6 +164,7 @@ class Env:
         return self._stages
 
     def _build(self, seed: int, scene: Scene | None) -> None:
+        seed = check_seed(seed)
         scene = self.task.sample_scene(seed) if scene is None else scene
         if self.sim is None or scene != self.scene:
             self.sim = Simulation(build_station(scene, self.config))

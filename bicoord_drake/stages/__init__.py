@@ -4,6 +4,7 @@ The same predicates annotate demonstrations (frame ranges), score rollouts (SSR)
 success, so labels and scores can never disagree.
 """
 
+from bicoord_drake.metrics.evaluation import stage_score
 from bicoord_drake.stages import predicates
 from bicoord_drake.stages.monitor import StageMonitor, check_rows, stage_index_from_rows
 from bicoord_drake.stages.stage import (
@@ -11,7 +12,6 @@ from bicoord_drake.stages.stage import (
     StageKind,
     WorldState,
     resolve_dependencies,
-    stage_score,
 )
 
 __all__ = [

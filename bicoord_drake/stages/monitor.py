@@ -11,7 +11,7 @@ counted (given stages count before the first update). A transient stage's credit
 value at such an update (latched); a persistent stage's is its value at the end (:meth:`finish`,
 or the latest update), and it needs at least one such update. A stage counts when its credit
 is 1; it *completed* at the first such update at which it held in full. So the same events in
-the wrong order give the dependent stage 0. ``score() = stage_score(scores, credit)``.
+the wrong order give the dependent stage 0. ``score() = stage_score(scores, credit, given)``.
 
 Demonstrations: stage ``j``'s row ends after the update at which it completed (the last stage
 runs to ``T``). Rows are ``[start, end, subgoal, left, right, score]``, contiguous, half-open,
@@ -29,8 +29,9 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bicoord_drake.metrics.evaluation import stage_score
 from bicoord_drake.stages.predicates import reset_predicate
-from bicoord_drake.stages.stage import Stage, WorldState, resolve_dependencies, stage_score
+from bicoord_drake.stages.stage import Stage, WorldState, resolve_dependencies
 
 _FULL = 1.0 - 1e-9
 
@@ -132,8 +133,9 @@ class StageMonitor:
         return self._walk()[1]
 
     def score(self) -> float:
-        """Stage-weighted score of the rollout: :func:`stage_score` of the credits."""
-        return stage_score([s.score for s in self.stages], self.credit())
+        """Stage-weighted score of the rollout: :func:`stage_score` of the credits of the
+        stages it was not given (a rollout reset at stage k is scored on stages k and later)."""
+        return stage_score([s.score for s in self.stages], self.credit(), self.given)
 
     @property
     def success(self) -> bool:

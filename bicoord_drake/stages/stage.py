@@ -273,14 +273,3 @@ def resolve_dependencies(stages: Sequence[Stage]) -> tuple[tuple[int, ...], ...]
             )
         deps.append(tuple(sorted(set(d))))
     return tuple(deps)
-
-
-def stage_score(scores: Sequence[float], credit: Sequence[float], first: int = 0) -> float:
-    """THE stage-weighted score of one rollout: ``sum_j s_j * credit_j`` over stages `first`
-    and later (a stage rollout from stage `first` is not paid for the given ones). Credits are
-    fractions in [0, 1] (partial credit), so env's ``info["score"]`` and the evaluation's SSR,
-    both computed here, agree."""
-    if len(scores) != len(credit):
-        raise ValueError(f"{len(scores)} stage scores but {len(credit)} credits")
-    pairs = list(zip(scores, credit, strict=True))[first:]
-    return float(sum(float(s) * float(c) for s, c in pairs))

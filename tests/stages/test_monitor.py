@@ -78,9 +78,10 @@ def test_given_stages_count_without_being_evaluated():
     FLAGS.clear()
     monitor = StageMonitor(stages, given=1)
     monitor.update(flags())
-    assert monitor.completed() == [True, False] and monitor.score() == pytest.approx(0.4)
+    assert monitor.completed() == [True, False] and monitor.score() == 0.0  # given: unpaid
     monitor.update(flags(b=True))
     assert monitor.completed() == [True, True] and monitor.success
+    assert monitor.score() == pytest.approx(0.6)
     with pytest.raises(ValueError, match="given"):
         StageMonitor(stages, given=3)
 
