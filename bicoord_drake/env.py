@@ -26,8 +26,9 @@ An action of the wrong shape, or with NaN/inf, raises :class:`InvalidActionError
 ``ValueError``) naming the problem and is not executed.
 
 Info after each step: ``step`` (control steps since the reset), ``completed`` / ``credit`` (per
-stage), ``score`` (stage-weighted score so far), ``success``, ``done`` (success, the stage of a
-stage rollout counted, or the step limit) and ``truncated`` (the step limit ended it).
+stage), ``score`` (:func:`bicoord_drake.metrics.stage_score` of the credits, the stages from the
+start stage on: the same function as the evaluation's SSR), ``success``, ``done`` (success, the
+stage of a stage rollout counted, or the step limit) and ``truncated`` (the step limit ended it).
 
 Start from a stage: ``reset(seed, stage=k)`` (the demonstration of `seed` is looked up in
 ``make_env(..., data=DIR)``) or ``reset(stage=k, episode=path_or_Episode)`` restores the
