@@ -99,29 +99,23 @@ class StageMonitor:
         end = self._final if self._final is not None else H[-1]
         persistent = np.array([s.kind == "persistent" for s in self.stages])
         H[-1, persistent] = end[persistent]
-        credit: list[float] = []
-        counted: list[bool] = []
-        at: list[int | None] = []
-        for j, (stage, deps) in enumerate(zip(self.stages, self.dependencies, strict=True)):
-            if j < self.given:
-                credit.append(1.0), counted.append(True), at.append(-1)
-                continue
-            if not all(counted[d] for d in deps):
-                credit.append(0.0), counted.append(False), at.append(None)
-                continue
-            after = max([at[d] for d in deps], default=-1) + 1
-            window = H[after:, j]
-            if not len(window):
-                own = 0.0
-            elif stage.kind == "transient":
-                own = float(window.max())
-            else:
-                own = float(window[-1])
-            hits = np.flatnonzero(window >= _FULL)
-            done = own >= _FULL and len(hits) > 0
+        credit: list[float] = [1.0] * self.given
+        counted: list[bool] = [True] * self.given
+        at: list[int | None] = [-1] * self.given
+        for j in range(self.given, len(self.stages)):
+            deps = self.dependencies[j]
+            own, done, first = 0.0, False, None
+            if all(counted[d] for d in deps):
+                after = max([at[d] for d in deps], default=-1) + 1
+                window = H[after:, j]
+                if len(window):
+                    own = float(window.max() if self.stages[j].kind == "transient" else window[-1])
+                hits = np.flatnonzero(window >= _FULL)
+                done = own >= _FULL and len(hits) > 0
+                first = int(after + hits[0]) if done else None
             credit.append(own)
             counted.append(done)
-            at.append(int(after + hits[0]) if done else None)
+            at.append(first)
         return credit, counted, at
 
     def credit(self) -> list[float]:
