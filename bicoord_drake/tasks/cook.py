@@ -37,11 +37,12 @@ from bicoord_drake.stages.predicates import (
     Predicate,
     all_of,
     any_of,
-    at_rest,
     fraction_true,
     inside,
     lifted,
     not_,
+    reset_predicate,
+    settled,
 )
 from bicoord_drake.tasks.base import Task, WorldView
 from bicoord_drake.tasks.registry import register_task
@@ -224,14 +225,15 @@ class Cook(Task):
     # ---------------------------------------------------------------- stages
     def stages(self, scene: Scene) -> list[Stage]:
         in_pan = [inside(r, "skillet", margin=0.005, z_above=0.02) for r in ROLLS]
-        # On the plate: over it, lying on it or on the other roll lying on it (centre at most
-        # two roll thicknesses above its rim), out of the pan, untouched and at rest.
+        # On the plate: in it, lying on it or on the other roll lying on it (centre at most
+        # two roll thicknesses above its rim), out of the pan, untouched and at rest for 0.3 s.
+        # The skillet may stay in the right hand: serving is a pour, not a placement.
         served = [
             all_of(
                 inside(r, "plate", margin=0.005, z_above=4 * ROLL_RADIUS - 0.01),
                 not_(inside(r, "skillet", z_above=0.02)),
                 _untouched(r),
-                at_rest(r, linear_tol=0.02, angular_tol=0.3),
+                settled([r], linear_tol=0.02, angular_tol=0.3),
             )
             for r in ROLLS
         ]
@@ -344,20 +346,27 @@ class _Shaken:
     2 * SHAKE_CYCLES - 1 times by >= 70 % of the full 10 cm swing, lifted off the table, with
     both rolls in the skillet the whole time (a roll leaving resets the count).
 
-    Stateful (it follows the rollout frame by frame); a state with a smaller step than the last
-    one seen starts it afresh, so a new rollout with the same stage list is scored correctly."""
+    Stateful (it follows the rollout frame by frame): :meth:`reset`, called by the stage
+    monitor at the start of every episode, starts it afresh; a step going back without a reset
+    is an error."""
 
     def __init__(self, in_pan: list[Predicate]) -> None:
         self.in_pan = in_pan
         self.name = "shaken(skillet, +-5 cm x2, both rolls in)"
-        self._reset(-1)
+        self.reset()
 
-    def _reset(self, step: int) -> None:
-        self._step, self._extreme, self._direction, self._swings = step, None, 0, 0
+    def reset(self) -> None:
+        """Forget the swings seen (a new episode)."""
+        for p in self.in_pan:
+            reset_predicate(p)
+        self._step, self._extreme, self._direction, self._swings = -1, None, 0, 0
 
     def __call__(self, s: WorldState) -> bool:
         if s.step < self._step:
-            self._reset(s.step)
+            raise ValueError(
+                f"{self.name}: step went back from {self._step} to {s.step} without a reset "
+                "(StageMonitor.reset() starts a new episode)"
+            )
         self._step = s.step
         holding = all(p(s) for p in self.in_pan) and lifted("skillet", 0.05)(s)
         if not holding:

@@ -39,12 +39,12 @@ from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     Predicate,
     all_of,
-    at_rest,
     fraction_true,
     held_by,
     lifted,
     on_table,
     released,
+    settled,
     upright,
     within_xy,
 )
@@ -74,7 +74,8 @@ COLORS = {
     "blue": (0.15, 0.3, 0.8, 1.0),
     "gold": (0.85, 0.68, 0.2, 1.0),
 }
-SETTLE_STEPS = 3
+#: Control steps both arms hold still at the end (placed mics at rest for 0.3 s: ``settled``).
+SETTLE_STEPS = 8
 
 
 @register_task
@@ -96,7 +97,8 @@ class ExchangeMics(Task):
     middle, R holds mic L; (5) place crosswise (1.0: 0.5 per mic).
 
     Success: mic R stands upright on the left square and mic L on the right square (centres
-    within 4 cm of the square centres, resting on the table), released and at rest.
+    within 4 cm of the square centres, resting on the table), released (both grippers open,
+    no finger touching it) and at rest for 0.3 s.
     """
 
     name = "exchange_mics"
@@ -160,7 +162,7 @@ class ExchangeMics(Task):
                 on_table(mic),
                 upright(mic),
                 released(mic),
-                at_rest(mic),
+                settled([mic]),
             )
 
         return [

@@ -33,11 +33,14 @@ from bicoord_drake.planning.skills import (
 )
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
+    Cavity,
     all_of,
-    at_rest,
+    hands_free,
     inside,
     lifted,
-    released,
+    on_table,
+    settled,
+    upright,
     within_xy,
 )
 from bicoord_drake.tasks.base import Task, WorldView
@@ -58,6 +61,15 @@ GRIP_AZIMUTH = (np.radians(-165), np.radians(-60))
 GRIP_MARGIN = 0.004  # pad-to-wall gap per side (m) of the narrowed jaw that picks it
 #: The spout lip's outer top edge in the bowl frame: the pivot of the pour and the exit point.
 LIP_POINT = np.array([POUR_RADIUS, 0.0, POUR_BASE + POUR_LIP])
+#: The pouring bowl's inside (a compound shape): inside its wall, above its base, below its
+#: rim (the spout's low lip is part of the rim's circle).
+POUR_CAVITY = Cavity(
+    kind="round",
+    floor=POUR_BASE,
+    rim=POUR_HEIGHT,
+    floor_radius=POUR_RADIUS - POUR_WALL,
+    rim_radius=POUR_RADIUS - POUR_WALL,
+)
 # ---- the catching bowl (right): the straight 12 mm-wall bowl of the toss trials.
 CATCH_BOWL = BowlShape(radius=0.075, base_radius=0.075, height=0.05, wall=0.012)
 CUBE = 0.02
@@ -111,8 +123,9 @@ class HandoverBlockWithBowls(Task):
     Stages: (1) both bowls lifted, cube still in the left one; (2) the cube poured into the
     right bowl; (3) the right bowl set on the target, the left bowl put back.
 
-    Success: the right bowl within 2.5 cm (xy) of the target centre with the cube inside,
-    released (both grippers open, no finger touching either bowl), bowl and cube at rest.
+    Success: the right bowl standing upright on the table within 2.5 cm (xy) of the target
+    centre with the cube inside, released (both grippers open, no finger touching either bowl
+    or the cube), bowl and cube at rest for 0.3 s.
     """
 
     name = "handover_block_with_bowls"
@@ -216,7 +229,7 @@ class HandoverBlockWithBowls(Task):
                 all_of(
                     lifted("pour_bowl", 0.05),
                     lifted("catch_bowl", 0.05),
-                    inside("cube", "pour_bowl"),
+                    inside("cube", "pour_bowl", cavity=POUR_CAVITY),
                 ),
                 "transient",
             ),
@@ -235,11 +248,11 @@ class HandoverBlockWithBowls(Task):
                 0.5,
                 all_of(
                     within_xy("catch_bowl", target_xy, 0.025),
+                    on_table("catch_bowl"),
+                    upright("catch_bowl"),
                     inside("cube", "catch_bowl"),
-                    released("catch_bowl"),
-                    released("pour_bowl"),
-                    at_rest("catch_bowl"),
-                    at_rest("cube"),
+                    hands_free(["catch_bowl", "pour_bowl", "cube"]),
+                    settled(["catch_bowl", "cube"]),
                 ),
                 "persistent",
             ),

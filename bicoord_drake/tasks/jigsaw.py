@@ -12,7 +12,14 @@ from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import Motion, SkillContext, hold, merge, pick, place, retreat
 from bicoord_drake.stages import Stage
-from bicoord_drake.stages.predicates import all_of, cells_filled, count_true, lifted, released
+from bicoord_drake.stages.predicates import (
+    all_of,
+    cells_filled,
+    count_true,
+    hands_free,
+    lifted,
+    settled,
+)
 from bicoord_drake.tasks.base import Task, WorldView
 from bicoord_drake.tasks.registry import register_task
 
@@ -27,7 +34,9 @@ COLORS = {
     "purple": (0.6, 0.3, 0.75, 1.0),
     "orange": (0.95, 0.5, 0.1, 1.0),
 }
-SETTLE_STEPS = 3
+#: Control steps both arms hold still at the end: the last placement must be seen at rest
+#: for 0.3 s (``settled``).
+SETTLE_STEPS = 8
 
 
 @register_task
@@ -44,7 +53,8 @@ class Jigsaw(Task):
     Stages: (1) both pick a spare; (2) left fills a cell while right holds; (3) right fills while
     left picks the next spare; (4) left fills while right picks; (5) right fills, left retreats.
 
-    Success: all nine cells hold a cube (centre within 1 cm, resting on the table), released.
+    Success: all nine cells hold a cube (centre within 1 cm, resting on the table), both
+    grippers open, no finger touching any cube, every cube at rest for 0.3 s.
     """
 
     name = "jigsaw"
@@ -140,7 +150,7 @@ class Jigsaw(Task):
                 "retreat",
                 "place its cube in the last cell",
                 0.25,
-                all_of(filled(9), *[released(c) for c in spares]),
+                all_of(filled(9), hands_free(cubes), settled(cubes)),
                 "persistent",
             ),
         ]
