@@ -38,6 +38,7 @@ def sti_png(trajectories: Sequence[TrajectoryLike]) -> bytes:
 def length_histogram_png(lengths_by_task: dict[str, Sequence[int]]) -> bytes:
     """Episode lengths (frames), one stacked colour per task."""
     from matplotlib.figure import Figure
+    from matplotlib.ticker import MaxNLocator
 
     fig = Figure(figsize=(5.0, 3.2), layout="constrained")
     ax = fig.add_subplot()
@@ -53,6 +54,7 @@ def length_histogram_png(lengths_by_task: dict[str, Sequence[int]]) -> bytes:
     )
     ax.set_xlabel("episode length (frames)")
     ax.set_ylabel("episodes")
+    ax.yaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_title("Episode lengths")
     ax.legend(fontsize="small")
     ax.grid(alpha=0.3)
