@@ -171,3 +171,17 @@ def smp_curve(
     )
     active = np.sort(r[both])
     return np.searchsorted(active, d, side="left") / len(r)
+
+
+def arm_acting(
+    xyz: ArrayLike,
+    gripper: ArrayLike,
+    *,
+    move_tol: float = MOVE_TOL,
+    closed_below: float = CLOSED_BELOW,
+) -> np.ndarray:
+    """``m_t`` of one arm: (L,) bool, it moved since the previous frame or its gripper is closed."""
+    p, g = _as_positions("xyz", xyz), _as_gripper("gripper", gripper)
+    if len(p) != len(g):
+        raise ValueError(f"mismatched trajectory lengths: xyz={len(p)}, gripper={len(g)}")
+    return _acting(p, g, move_tol, closed_below)

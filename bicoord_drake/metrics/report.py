@@ -26,6 +26,13 @@ from bicoord_drake.metrics.coordination import (
 
 COLUMNS = ("SMT", "SMP", "MRD", "ARD", "STI", "TL", "SN", "ON")
 PERCENT_COLUMNS = ("SMP", "MRD", "ARD", "STI")
+_PAPER = {
+    "RLBench2": (179, 97.10, 54.57, 114.93, 11.20, 186, 1.61, 2.23),
+    "RoboTwin 2.0": (60, 26.10, 63.83, 82.37, 8.13, 221, 1.64, 2.02),
+    "BiCoord": (329, 92.81, 29.59, 55.77, 42.16, 361, 4.27, 3.66),
+}
+PAPER_TABLE1 = {name: dict(zip(COLUMNS, row, strict=True)) for name, row in _PAPER.items()}
+"""The paper's Table 1 (dataset means; SMP, MRD, ARD, STI in percent), for comparison."""
 
 if TYPE_CHECKING:
     from bicoord_drake.data.readers import Trajectory

@@ -1,0 +1,458 @@
+"""Export episode files to a LeRobot dataset (needs the ``[lerobot]`` extra).
+
+Codebase v3.0 is written by lerobot's own ``LeRobotDataset.create`` / ``add_frame`` /
+``save_episode`` / ``finalize``. Codebase v2.1 (for tools that have not moved to v3.0) is written
+here directly in the v2.1 layout, with lerobot's video encoder and episode statistics; lerobot
+0.4 has no writer for it, only a converter from v2.1 to v3.0, which the tests run on our v2.1
+output to check it.
+
+Features of every frame ``t`` (14 numbers are ``[left 6 joints, left gripper, right 6 joints,
+right gripper]``, as in the episode file)::
+
+    observation.state          (14,)  measured joint state
+    action                     (14,)  commanded joint targets and gripper openings
+    observation.endpose        (14,)  left TCP xyz + quaternion wxyz, then right
+    stage_index                (1,)   int64, the BiCoord stage the frame belongs to
+    observation.images.{head,left,right}   videos (H, W, 3)
+    task                       the episode's instruction
+
+``meta/bicoord_episodes.jsonl`` adds per episode its source file, seed and stage rows
+``[start, end, subgoal, left, right, score]``. The dataset is built in a temporary directory
+beside ``out`` and renamed when complete.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bicoord_drake.data.episode import SIDES, Episode, read_episode
+from bicoord_drake.data.readers import find_episode_files
+
+CODEBASES = ("v3.0", "v2.1")
+DTYPES = ("float32", "float64")
+LEROBOT_PIN = "lerobot==0.4.4"
+CAMERAS = {
+    "head_camera": "observation.images.head",
+    "left_camera": "observation.images.left",
+    "right_camera": "observation.images.right",
+}
+"""Our camera names and their LeRobot feature keys."""
+EXTRAS_FILE = "meta/bicoord_episodes.jsonl"
+_V21_CHUNK = 1000
+_V21_DATA = "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet"
+_V21_VIDEO = "videos/chunk-{episode_chunk:03d}/{video_key}/episode_{episode_index:06d}.mp4"
+
+
+def require_lerobot() -> None:
+    """Raise ImportError saying how to install lerobot unless its dataset API imports."""
+    try:
+        import lerobot.datasets.lerobot_dataset  # noqa: F401
+    except ImportError as exc:
+        raise ImportError(
+            f"the LeRobot export needs lerobot ({exc}); install it with "
+            f"pip install -e '.[lerobot]' && pip install --no-deps {LEROBOT_PIN}"
+        ) from None
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    """What :func:`export_lerobot` wrote."""
+
+    root: Path
+    repo_id: str
+    codebase: str
+    episodes: int
+    frames: int
+    sources: tuple[Path, ...]
+
+
+# --------------------------------------------------------------------------- features
+def _joint_names(episode: Episode) -> list[str]:
+    from bicoord_drake.models.embodiment import get_embodiment
+
+    joints = get_embodiment(episode.attrs["embodiment"]).arm.joint_names
+    return [f"{side}_{name}" for side in SIDES for name in [*joints, "gripper"]]
+
+
+def lerobot_features(episode: Episode, dtype: str = "float32") -> dict[str, dict[str, Any]]:
+    """The LeRobot feature dictionary for episodes shaped like ``episode``."""
+    if dtype not in DTYPES:
+        raise ValueError(f"unknown dtype {dtype!r}; choose one of {', '.join(DTYPES)}")
+    pose = ["x", "y", "z", "qw", "qx", "qy", "qz"]
+    features: dict[str, dict[str, Any]] = {
+        "observation.state": {"dtype": dtype, "shape": (14,), "names": _joint_names(episode)},
+        "action": {"dtype": dtype, "shape": (14,), "names": _joint_names(episode)},
+        "observation.endpose": {
+            "dtype": dtype,
+            "shape": (14,),
+            "names": [f"{side}_{p}" for side in SIDES for p in pose],
+        },
+        "stage_index": {"dtype": "int64", "shape": (1,), "names": None},
+    }
+    for cam in sorted(episode.rgb):
+        if cam not in CAMERAS:
+            raise ValueError(f"{episode.path}: unknown camera {cam!r}; known: {sorted(CAMERAS)}")
+        h, w = episode.image(cam, 0).shape[:2]
+        features[CAMERAS[cam]] = {
+            "dtype": "video",
+            "shape": (h, w, 3),
+            "names": ["height", "width", "channels"],
+        }
+    return features
+
+
+def frame_values(episode: Episode, t: int, dtype: str = "float32") -> dict[str, np.ndarray]:
+    """The non-image feature values of frame ``t``."""
+    return {
+        "observation.state": episode.joint_state[t].astype(dtype),
+        "action": episode.joint_action[t].astype(dtype),
+        "observation.endpose": np.concatenate(
+            [episode.left_endpose[t], episode.right_endpose[t]]
+        ).astype(dtype),
+        "stage_index": np.array([episode.stage_index[t]], dtype=np.int64),
+    }
+
+
+def _frames(episode: Episode, dtype: str) -> Iterator[dict[str, Any]]:
+    for t in range(episode.length):
+        frame: dict[str, Any] = frame_values(episode, t, dtype)
+        for cam in sorted(episode.rgb):
+            frame[CAMERAS[cam]] = episode.image(cam, t)
+        yield frame
+
+
+def _episode_extras(index: int, episode: Episode) -> dict[str, Any]:
+    return {
+        "episode_index": index,
+        "source": str(episode.path),
+        "task_name": episode.task,
+        "seed": episode.seed,
+        "instruction": episode.instruction,
+        "stages": episode.stages,
+    }
+
+
+# --------------------------------------------------------------------------- inputs
+def _integer_fps(episode: Episode) -> int:
+    fps = episode.fps
+    if fps != int(fps):
+        raise ValueError(f"{episode.path}: LeRobot needs an integer fps, the episode has {fps}")
+    return int(fps)
+
+
+def load_episodes(paths: Iterable[str | Path]) -> list[Episode]:
+    """Read every episode file under ``paths`` and check they can share one dataset."""
+    files, errors = find_episode_files(paths)
+    if errors:
+        raise ValueError("; ".join(errors))
+    episodes = [read_episode(f) for f in files]
+    if not episodes:
+        raise ValueError("no episode files to export")
+    first = episodes[0]
+    reference = lerobot_features(first)
+    for episode in episodes:
+        if not episode.rgb:
+            raise ValueError(
+                f"{episode.path}: no camera images (generated with --no-render?); "
+                "the LeRobot export needs them"
+            )
+        if _integer_fps(episode) != _integer_fps(first):
+            raise ValueError(f"{episode.path}: fps {episode.fps} differs from {first.fps}")
+        if lerobot_features(episode) != reference:
+            raise ValueError(
+                f"{episode.path}: cameras, image sizes or embodiment differ from {first.path}"
+            )
+    return episodes
+
+
+def default_repo_id(episodes: Sequence[Episode]) -> str:
+    """``bicoord_drake/<task>`` for one task, ``bicoord_drake/mixed`` for several."""
+    tasks = sorted({e.task for e in episodes})
+    return f"bicoord_drake/{tasks[0] if len(tasks) == 1 else 'mixed'}"
+
+
+# --------------------------------------------------------------------------- export
+def export_lerobot(
+    paths: Iterable[str | Path],
+    out: str | Path,
+    *,
+    repo_id: str | None = None,
+    codebase: str = "v3.0",
+    dtype: str = "float32",
+    vcodec: str = "libsvtav1",
+) -> ExportResult:
+    """Export the episodes under ``paths`` into a new LeRobot dataset directory ``out``.
+
+    ``dtype`` float64 keeps the stored states, actions and poses bit-exact; lerobot hands
+    items out as float32 either way (what policies read).
+    Raises ``FileExistsError`` if ``out`` exists, ``ValueError`` on bad input.
+    """
+    if codebase not in CODEBASES:
+        raise ValueError(f"unknown codebase {codebase!r}; choose one of {', '.join(CODEBASES)}")
+    if dtype not in DTYPES:
+        raise ValueError(f"unknown dtype {dtype!r}; choose one of {', '.join(DTYPES)}")
+    out = Path(out)
+    if out.exists():
+        raise FileExistsError(f"{out} exists; remove it or choose another output directory")
+    require_lerobot()
+    episodes = load_episodes(paths)
+    repo_id = repo_id or default_repo_id(episodes)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp"))
+    root = staging / "dataset"
+    try:
+        writer = _write_v30 if codebase == "v3.0" else _write_v21
+        writer(episodes, root, repo_id, dtype, vcodec)
+        _write_jsonl(root / EXTRAS_FILE, [_episode_extras(i, e) for i, e in enumerate(episodes)])
+        root.rename(out)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return ExportResult(
+        root=out,
+        repo_id=repo_id,
+        codebase=codebase,
+        episodes=len(episodes),
+        frames=sum(e.length for e in episodes),
+        sources=tuple(e.path for e in episodes),
+    )
+
+
+def _write_jsonl(path: Path, rows: Iterable[dict[str, Any]]) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with open(path, "w", encoding="utf-8") as fh:
+        for row in rows:
+            fh.write(json.dumps(row, ensure_ascii=False) + "\n")
+
+
+def _write_v30(
+    episodes: Sequence[Episode], root: Path, repo_id: str, dtype: str, vcodec: str
+) -> None:
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    dataset = LeRobotDataset.create(
+        repo_id=repo_id,
+        fps=_integer_fps(episodes[0]),
+        features=lerobot_features(episodes[0], dtype),
+        root=root,
+        robot_type=episodes[0].attrs["embodiment"],
+        use_videos=True,
+        vcodec=vcodec,
+    )
+    try:
+        for episode in episodes:
+            for frame in _frames(episode, dtype):
+                dataset.add_frame({**frame, "task": episode.instruction})
+            # lerobot stores a (1,)-shaped feature as a scalar column and hands each (1,) array
+            # to int(), which numpy >= 2.3 refuses: give it the scalars it stores.
+            buffer = dataset.episode_buffer
+            buffer["stage_index"] = [int(v[0]) for v in buffer["stage_index"]]
+            dataset.save_episode(parallel_encoding=False)
+    finally:
+        dataset.finalize()
+
+
+def _write_v21(
+    episodes: Sequence[Episode], root: Path, repo_id: str, dtype: str, vcodec: str
+) -> None:
+    """The v2.1 layout: one parquet file and one MP4 per camera per episode, JSON-lines meta."""
+    import datasets
+    from lerobot.datasets.compute_stats import compute_episode_stats
+    from lerobot.datasets.utils import DEFAULT_FEATURES, get_hf_features_from_features
+    from lerobot.datasets.video_utils import encode_video_frames, get_video_info
+    from PIL import Image
+
+    fps = _integer_fps(episodes[0])
+    features = {**lerobot_features(episodes[0], dtype), **DEFAULT_FEATURES}
+    video_keys = [k for k, f in features.items() if f["dtype"] == "video"]
+    table_features = {k: f for k, f in features.items() if f["dtype"] != "video"}
+    hf_features = get_hf_features_from_features(table_features)
+    tasks: dict[str, int] = {}
+    episode_rows, stats_rows = [], []
+    total = 0
+    for index, episode in enumerate(episodes):
+        task_index = tasks.setdefault(episode.instruction, len(tasks))
+        T = episode.length
+        columns: dict[str, Any] = {
+            k: np.stack([frame_values(episode, t, dtype)[k] for t in range(T)])
+            for k in ("observation.state", "action", "observation.endpose", "stage_index")
+        }
+        columns["timestamp"] = (np.arange(T) / fps).astype(np.float32).reshape(T, 1)
+        columns["frame_index"] = np.arange(T, dtype=np.int64).reshape(T, 1)
+        columns["episode_index"] = np.full((T, 1), index, dtype=np.int64)
+        columns["index"] = np.arange(total, total + T, dtype=np.int64).reshape(T, 1)
+        columns["task_index"] = np.full((T, 1), task_index, dtype=np.int64)
+        chunk = index // _V21_CHUNK
+        data_path = root / _V21_DATA.format(episode_chunk=chunk, episode_index=index)
+        data_path.parent.mkdir(parents=True, exist_ok=True)
+        table = {
+            k: columns[k][:, 0] if features[k]["shape"] == (1,) else list(columns[k])
+            for k in table_features
+        }
+        datasets.Dataset.from_dict(table, features=hf_features).to_parquet(str(data_path))
+
+        frame_paths: dict[str, list[str]] = {}
+        with tempfile.TemporaryDirectory(dir=root) as frames_dir:
+            for cam in sorted(episode.rgb):
+                key = CAMERAS[cam]
+                cam_dir = Path(frames_dir) / key
+                cam_dir.mkdir()
+                frame_paths[key] = []
+                for t in range(T):
+                    png = cam_dir / f"frame-{t:06d}.png"
+                    Image.fromarray(episode.image(cam, t)).save(png, compress_level=1)
+                    frame_paths[key].append(str(png))
+                video = root / _V21_VIDEO.format(
+                    episode_chunk=chunk, video_key=key, episode_index=index
+                )
+                encode_video_frames(cam_dir, video, fps, vcodec=vcodec)
+            stats = compute_episode_stats({**columns, **frame_paths}, features)
+        stats_rows.append({"episode_index": index, "stats": _jsonable(stats)})
+        episode_rows.append({"episode_index": index, "tasks": [episode.instruction], "length": T})
+        total += T
+
+    for key in video_keys:
+        video = root / _V21_VIDEO.format(episode_chunk=0, video_key=key, episode_index=0)
+        features[key]["info"] = get_video_info(video)
+    info = {
+        "codebase_version": "v2.1",
+        "robot_type": episodes[0].attrs["embodiment"],
+        "total_episodes": len(episodes),
+        "total_frames": total,
+        "total_tasks": len(tasks),
+        "total_videos": len(episodes) * len(video_keys),
+        "total_chunks": (len(episodes) - 1) // _V21_CHUNK + 1,
+        "chunks_size": _V21_CHUNK,
+        "fps": fps,
+        "splits": {"train": f"0:{len(episodes)}"},
+        "data_path": _V21_DATA,
+        "video_path": _V21_VIDEO,
+        "features": _jsonable(features),
+    }
+    (root / "meta").mkdir(parents=True, exist_ok=True)
+    (root / "meta/info.json").write_text(json.dumps(info, indent=4) + "\n", encoding="utf-8")
+    _write_jsonl(root / "meta/episodes.jsonl", episode_rows)
+    _write_jsonl(root / "meta/episodes_stats.jsonl", stats_rows)
+    _write_jsonl(
+        root / "meta/tasks.jsonl", [{"task_index": i, "task": t} for t, i in tasks.items()]
+    )
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+# --------------------------------------------------------------------------- checking
+@dataclass(frozen=True)
+class ExportCheck:
+    """How a LeRobot dataset loaded with lerobot compares with its source episodes."""
+
+    episodes: int
+    frame_counts: tuple[tuple[int, int], ...]
+    """(exported, source) frames per episode"""
+    numeric_exact: dict[str, bool]
+    """per numeric feature: equal to the source cast to the dataset's dtype, bit for bit"""
+    image_mean_abs_error: float
+    """mean |exported - source| over the compared images, in 0..255 levels"""
+    image_max_mean_abs_error: float
+    """the worst compared frame's mean |error|"""
+    images_compared: int
+
+    @property
+    def ok(self) -> bool:
+        """Counts match and every numeric feature is exact (images are judged by the caller)."""
+        return all(a == b for a, b in self.frame_counts) and all(self.numeric_exact.values())
+
+
+def load_lerobot(root: str | Path, repo_id: str) -> Any:
+    """``LeRobotDataset(repo_id, root=root)`` decoding videos with torchcodec, offline."""
+    require_lerobot()
+    from lerobot.datasets.lerobot_dataset import LeRobotDataset
+
+    return LeRobotDataset(repo_id, root=root, video_backend="torchcodec")
+
+
+def check_export(
+    dataset: Any, episodes: Sequence[Episode], images_per_episode: int | None = 3
+) -> ExportCheck:
+    """Compare a loaded LeRobot dataset with its source episodes (in export order).
+
+    Numeric features are compared in full; images on ``images_per_episode`` evenly spaced frames
+    per episode (all frames if None).
+    """
+    numeric = ("observation.state", "action", "observation.endpose", "stage_index")
+    dtype = dataset.meta.features["action"]["dtype"]
+    # read the arrow columns (datasets' numpy formatter imports a torchvision API gone in 0.25+)
+    table = dataset.hf_dataset.data
+    columns = {
+        k: np.array(table.column(k).to_pylist(), dtype=dataset.meta.features[k]["dtype"])
+        for k in (*numeric, "episode_index", "frame_index")
+    }
+    if dataset.meta.total_episodes != len(episodes):
+        raise ValueError(
+            f"the dataset has {dataset.meta.total_episodes} episodes, the source {len(episodes)}"
+        )
+    counts, exact = [], dict.fromkeys(numeric, True)
+    errors: list[float] = []
+    for index, episode in enumerate(episodes):
+        rows = np.flatnonzero(columns["episode_index"].reshape(-1) == index)
+        counts.append((len(rows), episode.length))
+        if len(rows) != episode.length:
+            for key in numeric:
+                exact[key] = False
+            continue
+        order = rows[np.argsort(columns["frame_index"].reshape(-1)[rows])]
+        source = [frame_values(episode, t, dtype) for t in range(episode.length)]
+        for key in numeric:
+            want = np.stack([s[key] for s in source])
+            got = columns[key][order].reshape(want.shape)
+            exact[key] &= got.dtype == want.dtype and np.array_equal(got, want)
+        last = episode.length - 1
+        picks = (
+            range(last + 1)
+            if images_per_episode is None
+            else np.linspace(0, last, images_per_episode)
+        )
+        for t in sorted({int(round(p)) for p in picks}):
+            item = dataset[int(order[t])]
+            for cam in sorted(episode.rgb):
+                got = np.asarray(item[CAMERAS[cam]]).transpose(1, 2, 0) * 255.0
+                errors.append(float(np.mean(np.abs(got - episode.image(cam, t)))))
+    return ExportCheck(
+        episodes=len(episodes),
+        frame_counts=tuple(counts),
+        numeric_exact=exact,
+        image_mean_abs_error=float(np.mean(errors)) if errors else float("nan"),
+        image_max_mean_abs_error=float(np.max(errors)) if errors else float("nan"),
+        images_compared=len(errors),
+    )
+
+
+def convert_v21_to_v30(root: str | Path, repo_id: str, work_dir: str | Path) -> Path:
+    """Convert a v2.1 export with lerobot's own converter (offline) into ``work_dir``; returns
+    the converted dataset's root. The v2.1 directory itself is left untouched."""
+    require_lerobot()
+    from lerobot.datasets.v30.convert_dataset_v21_to_v30 import convert_dataset
+
+    target = Path(work_dir) / repo_id
+    if target.exists():
+        raise FileExistsError(f"{target} exists")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copytree(root, target)
+    convert_dataset(repo_id, root=work_dir, push_to_hub=False)
+    return target
