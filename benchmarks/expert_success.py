@@ -192,9 +192,11 @@ def run_task(task: str, seeds: range, workers: int, work_dir: Path) -> TaskResul
         video=False,
         workers=workers,
     )
+    commit, dirty = git_state()
     t0 = time.perf_counter()
     summary = generate(config)
-    commit, dirty = git_state()
+    end_commit, end_dirty = git_state()  # the tree may change while the seeds run
+    dirty = dirty or end_dirty or end_commit != commit
     return TaskResult(
         task=task,
         seeds=seeds,
