@@ -341,10 +341,11 @@ def _vec(v: Vec3) -> str:
 #: limit clips everything the actuator outputs: PD plus gravity feed-forward.
 XM540_STALL = 10.6
 XM430_STALL = 4.1
-#: Joint speed limit, rad/s: the XM540-W270's no-load speed at 12 V, 30 rev/min = pi rad/s (the
-#: XM430-W350 turns at up to 46 rev/min = 4.8 rad/s; Interbotix's vx300s description caps every
-#: joint at pi rad/s, and so does the planner here).
-ARM_SPEED = float(np.pi)
+#: Joint speed limit, rad/s, used by the planner: just under the XM540-W270's no-load speed at
+#: 12 V, 30 rev/min = pi rad/s (the XM430-W350 turns at up to 46 rev/min = 4.8 rad/s;
+#: Interbotix's vx300s description caps every joint at pi rad/s). 3.14 is the value the experts'
+#: plans were made with.
+ARM_SPEED = 3.14
 
 
 def aloha_viperx() -> Embodiment:
