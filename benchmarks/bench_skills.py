@@ -4,9 +4,10 @@
     python benchmarks/bench_skills.py [--seeds 10] [--skills toss handover]
 
 Each seed samples a scene (cube position by up to 3 cm per axis, size 2.8-3.2 cm, mass
-25-35 g; for the toss also the bowl position by up to 3 cm), plans with ``Skills`` and runs every
-action through ``Simulation.step`` (objects move only because fingers push them). The trials are
-the ones in ``tests/planning/test_skills_dynamic.py`` (``-m slow`` runs the same 10 seeds).
+25-35 g; for the toss also the bowl position by up to 3 cm), plans with the skills package and runs
+every action through ``Simulation.step`` (objects move only because fingers push them).
+The trials are the ones in ``tests/planning/test_skills_dynamic.py`` (``-m slow`` runs the
+same 10 seeds).
 Prints a Markdown table per skill, then the totals.
 
 Toss success: after settling, the cube is inside the bowl (off the bowl axis by less than the

@@ -22,13 +22,8 @@ from bicoord_drake.models.embodiment import get_embodiment
 from bicoord_drake.models.scene import demo_scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import arm_base, grasp_candidates
-from bicoord_drake.planning.timing import (
-    ARM_SLICES,
-    JointLimits,
-    rendezvous,
-    throw_release,
-    time_path,
-)
+from bicoord_drake.planning.throwing import throw_release
+from bicoord_drake.planning.timing import ARM_SLICES, JointLimits, rendezvous, time_path
 
 
 def random_paths(limits: JointLimits, k: int, count: int, seed: int) -> list[np.ndarray]:

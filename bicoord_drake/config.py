@@ -10,6 +10,7 @@ from __future__ import annotations
 import re
 from typing import Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 CAMERA_NAMES = ("head_camera", "left_camera", "right_camera")
@@ -27,6 +28,31 @@ def validation_message(err: ValidationError, *, as_option: bool = False) -> str:
     if as_option:
         field = "--" + field.replace("_", "-")
     return f"{field}: {message}"
+
+
+#: Seeds are in [0, SEED_LIMIT): numpy's generators take any integer, but every seed is recorded
+#: as a 64-bit integer and the reference benchmark's seeds are 32-bit.
+SEED_LIMIT = 2**32
+
+
+def check_seed(seed: int, what: str = "seed") -> int:
+    """`seed` as an int if it is in [0, 2**32); a ValueError naming `what` otherwise."""
+    if isinstance(seed, bool) or not isinstance(seed, int | np.integer):
+        raise ValueError(f"{what} must be an integer in [0, 2**32), got {seed!r}")
+    if not 0 <= int(seed) < SEED_LIMIT:
+        raise ValueError(f"{what} must be in [0, 2**32) = [0, {SEED_LIMIT - 1}], got {seed}")
+    return int(seed)
+
+
+def check_seed_range(first: int, count: int, what: str = "seed") -> None:
+    """Refuse a run that would try seeds past 2**32 - 1 (`count` seeds from `first`)."""
+    check_seed(first, what)
+    last = int(first) + max(int(count), 1) - 1
+    if last >= SEED_LIMIT:
+        raise ValueError(
+            f"{what} {first}: the {count} seeds tried would run to {last}, past the largest "
+            f"seed 2**32 - 1 = {SEED_LIMIT - 1}"
+        )
 
 
 def parse_resolution(text: str) -> tuple[int, int]:

@@ -26,8 +26,9 @@ An action of the wrong shape, or with NaN/inf, raises :class:`InvalidActionError
 ``ValueError``) naming the problem and is not executed.
 
 Info after each step: ``step`` (control steps since the reset), ``completed`` / ``credit`` (per
-stage), ``score`` (stage-weighted score so far), ``success``, ``done`` (success, the stage of a
-stage rollout counted, or the step limit) and ``truncated`` (the step limit ended it).
+stage), ``score`` (:func:`bicoord_drake.metrics.stage_score` of the credits, the stages from the
+start stage on: the same function as the evaluation's SSR), ``success``, ``done`` (success, the
+stage of a stage rollout counted, or the step limit) and ``truncated`` (the step limit ended it).
 
 Start from a stage: ``reset(seed, stage=k)`` (the demonstration of `seed` is looked up in
 ``make_env(..., data=DIR)``) or ``reset(stage=k, episode=path_or_Episode)`` restores the
@@ -47,7 +48,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from bicoord_drake.config import CameraConfig, StationConfig, parse_resolution
+from bicoord_drake.config import CameraConfig, StationConfig, check_seed, parse_resolution
 from bicoord_drake.data.episode import Episode, read_episode
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.sim.simulation import Simulation
@@ -164,6 +165,7 @@ class Env:
         return self._stages
 
     def _build(self, seed: int, scene: Scene | None) -> None:
+        seed = check_seed(seed)
         scene = self.task.sample_scene(seed) if scene is None else scene
         if self.sim is None or scene != self.scene:
             self.sim = Simulation(build_station(scene, self.config))

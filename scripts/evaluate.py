@@ -11,9 +11,10 @@ Examples:
 Policies: a built-in (replay: the recorded actions of the --data episodes; expert: the task's
 planner in closed loop; noop: hold still) or package.module:name - a class with
 reset(instruction) and act(obs) -> action, or a function act(obs). Evaluation seeds start at
-100000 * (1 + --seed); a seed whose expert fails is skipped and reported (the verdict is cached
-in ~/.cache/bicoord_drake/expert_check/, or $BICOORD_CACHE). With --data the rollouts are the
-demonstrations' own seeds. The report (report.json, stage_success.png) goes to
+100000 * (1 + --seed) (seeds are below 2**32); a seed whose expert fails is skipped and reported
+(the verdict is cached in ~/.cache/bicoord_drake/expert_check/, or $BICOORD_CACHE), except with
+--policy expert, where it is a failed rollout counted in SR and SSR. With --data the rollouts
+are the demonstrations' own seeds. The report (report.json, stage_success.png) goes to
 <out>/<task>/<policy>/.
 """
 
@@ -36,7 +37,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--episodes", type=int, default=100, help="rollouts (default 100)")
     parser.add_argument(
-        "--seed", type=int, default=0, help="evaluation seeds start at 100000 * (1 + SEED)"
+        "--seed",
+        type=int,
+        default=0,
+        help="evaluation seeds start at 100000 * (1 + SEED), SEED <= 42948",
     )
     parser.add_argument("--data", help="demonstrations (directory or file): their seeds, scenes")
     parser.add_argument(

@@ -26,7 +26,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--task", required=True, help="task name (see the list on a wrong name)")
     parser.add_argument("--episodes", type=int, default=10, help="episodes to keep (default 10)")
-    parser.add_argument("--seed", type=int, default=0, help="first seed to try (default 0)")
+    parser.add_argument(
+        "--seed", type=int, default=0, help="first seed to try, in [0, 2**32) (default 0)"
+    )
     parser.add_argument("--out", default="data", help="output root (default: data)")
     parser.add_argument("--resolution", default="320x240", help="camera WIDTHxHEIGHT")
     parser.add_argument("--fps", type=float, default=15.0, help="control/recording rate, Hz")

@@ -73,7 +73,8 @@ def main(argv: list[str] | None = None) -> int:
     for error in errors:
         print("error: " + " ".join(error.split()), file=sys.stderr)
     if metrics is None:
-        print("error: no episode could be measured", file=sys.stderr)
+        why = f"{len(errors)} problem(s), each named above" if errors else "nothing to read"
+        print(f"error: no episode could be measured ({why})", file=sys.stderr)
         return 1
     if args.json:
         print(json.dumps(metrics.to_json_dict(), indent=2))

@@ -268,6 +268,11 @@ class EpisodeRecorder:
     def cameras(self) -> list[str]:
         return list(self._rgb)
 
+    @property
+    def actions(self) -> np.ndarray:
+        """The recorded actions, (T, 14) float64 (a copy)."""
+        return np.array(self._action, dtype=np.float64).reshape(len(self), ACTION_SIZE)
+
     def add_frame(
         self,
         *,

@@ -305,7 +305,8 @@ def find_episode_files(paths: Iterable[str | Path]) -> tuple[list[Path], list[st
 def read_trajectories(
     paths: Iterable[str | Path], format: str = "auto"
 ) -> tuple[list[Trajectory], list[str]]:
-    """Read every episode under ``paths``; bad files become one-line errors, not exceptions."""
+    """Read every episode under ``paths``; each bad file becomes one error line that names the
+    file and why it could not be read (an unexpected error included), never an exception."""
     if format not in FORMATS:
         raise ValueError(f"unknown format {format!r}; choose one of {', '.join(FORMATS)}")
     files, errors = find_episode_files(paths)
@@ -314,5 +315,8 @@ def read_trajectories(
         try:
             trajectories.append(read_trajectory(file, format))
         except ValueError as exc:
-            errors.append(str(exc))
+            text = str(exc)
+            errors.append(text if text.startswith(str(file)) else f"{file}: {text}")
+        except Exception as exc:  # noqa: BLE001 - a corrupt file must not end the whole read
+            errors.append(f"{file}: cannot read ({type(exc).__name__}: {exc})")
     return trajectories, errors

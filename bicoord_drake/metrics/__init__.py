@@ -16,6 +16,7 @@ from bicoord_drake.metrics.coordination import (
     smp_curve,
 )
 from bicoord_drake.metrics.evaluation import (
+    stage_score,
     stage_success_rate,
     success_rate,
     trajectory_length,
@@ -49,6 +50,7 @@ __all__ = [
     "measure_paths",
     "plot_sti_curves",
     "smp_curve",
+    "stage_score",
     "stage_success_rate",
     "sti_curves",
     "success_rate",

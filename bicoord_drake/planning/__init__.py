@@ -1,4 +1,4 @@
-"""Planning: bimanual IK, collision-free motion, ruckig timing, grasps and skills."""
+"""Planning: bimanual IK, collision-free motion, ruckig timing and throws, grasps, skills."""
 
 from bicoord_drake.planning.errors import PlanningError
 

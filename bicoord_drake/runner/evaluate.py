@@ -4,17 +4,23 @@
 evaluation seeds ``100000 * (1 + seed)`` upward. A seed whose expert fails (checked by running
 the expert in physics, verdict cached per task, seed and settings in
 ``$BICOORD_CACHE/expert_check/<task>.json``, default ``~/.cache/bicoord_drake``) is skipped and
-reported, and the next seed is tried, until ``episodes`` rollouts ran. With ``data`` the rollouts
-are the demonstrations' own seeds and scenes (no expert check: they succeeded); ``stage = k``
-resets each rollout at the start of stage k of its demonstration (see :mod:`bicoord_drake.env`).
+reported, and the next seed is tried, until ``episodes`` rollouts ran. The ``expert`` policy is
+the exception: its rollouts are the check, so a seed its expert fails is a failed rollout,
+counted in SR and SSR and listed in the report (``expert_failures``), never skipped. With
+``data`` the rollouts are the demonstrations' own seeds and scenes (no expert check: they
+succeeded); ``stage = k`` resets each rollout at the start of stage k of its demonstration (see
+:mod:`bicoord_drake.env`).
 
 A rollout ends at success (in a stage rollout: when stage k counts) or at the step limit. A
 policy that raises, or returns an invalid action (not executed), ends its rollout as a failure;
 the error and traceback go to the report and evaluation continues with the next seed.
 
-Scores: SR = successes / N; SSR = (1/N) sum_i sum_j s_j c_ij; TL = mean steps of the successful
-rollouts (None when none succeeded). In a stage evaluation a rollout succeeds when stage k counts
-and SSR sums only stages k and later (the earlier ones were given).
+Scores: SR = successes / N; SSR = (1/N) sum_i sum_j s_j c_ij with c_ij the stage's credit
+(partial credit included: cook 0.25 per roll, exchange_mics 0.5 per mic), the mean of the
+rollouts' ``info["score"]`` - both from :func:`bicoord_drake.metrics.stage_score`; TL = mean
+steps of the successful rollouts (None when none succeeded). In a stage evaluation a rollout
+succeeds when stage k counts and scores sum only stages k and later (the earlier ones were
+given).
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from bicoord_drake.config import parse_resolution
+from bicoord_drake.config import SEED_LIMIT, check_seed_range, parse_resolution
 from bicoord_drake.data.episode import (
     Episode,
     decode_rgb,
@@ -70,7 +76,9 @@ class EvaluateConfig(BaseModel):
     task: str
     policy: str = Field(description="built-in name or package.module:name")
     episodes: int = Field(100, ge=1, description="rollouts to run")
-    seed: int = Field(0, ge=0, description="evaluation seeds start at 100000 * (1 + seed)")
+    seed: int = Field(
+        0, ge=0, description="evaluation seeds start at 100000 * (1 + seed), below 2**32"
+    )
     data: str | None = Field(None, description="demonstrations: their seeds and scenes")
     stage: int | None = Field(None, ge=0, description="reset at the start of this stage")
     video: str | None = Field(None, description="directory for head-camera rollout videos")
@@ -98,6 +106,15 @@ class EvaluateConfig(BaseModel):
             raise ValueError("a stage evaluation needs demonstrations: give data (--data DIR)")
         if self.video and not self.render:
             raise ValueError("video needs rendering: drop --no-render")
+        if not self.data:
+            first = evaluation_seed(self.seed)
+            largest = SEED_LIMIT // EVAL_SEED_START - 1
+            if first >= SEED_LIMIT:
+                raise ValueError(
+                    f"seed {self.seed}: evaluation seeds would start at 100000 * (1 + seed) = "
+                    f"{first}, past the largest seed 2**32 - 1; use a seed <= {largest}"
+                )
+            check_seed_range(first, self.max_tries or 3 * self.episodes, "evaluation seed")
         return self
 
     @property
@@ -150,6 +167,7 @@ class EvaluationReport:
     stage_completion: list[float]
     coordination: dict[str, float | None] | None
     config: dict[str, Any]
+    expert_failures: list[dict[str, Any]] | None = None
     report_path: Path | None = None
     plot_path: Path | None = None
     seconds: float = 0.0
@@ -173,6 +191,7 @@ class EvaluationReport:
             ],
             "coordination": self.coordination,
             "skipped": self.skipped,
+            "expert_failures": self.expert_failures,
             "rollouts": [r.to_json() for r in self.rollouts],
             "report": str(self.report_path) if self.report_path else None,
             "plot": str(self.plot_path) if self.plot_path else None,
@@ -213,6 +232,13 @@ class EvaluationReport:
             )
         for s in self.skipped:
             lines.append(f"skipped seed {s['seed']}: {s['reason']}")
+        if self.expert_failures is not None:
+            lines.append(
+                f"expert policy: no seed is skipped; {len(self.expert_failures)} of {self.n} "
+                "seeds the expert failed count as failures in SR and SSR"
+            )
+            for f in self.expert_failures:
+                lines.append(f"  expert failed seed {f['seed']}: {f['reason']}")
         for r in self.rollouts:
             if r.error:
                 lines.append(f"seed {r.seed} failed: {r.error}")
@@ -436,7 +462,10 @@ def evaluate(
             rollouts.append(result)
             note(result, f"{path.name}: {'success' if result.success else 'failure'}")
     else:
-        check = ExpertCheck(task, config.fps) if config.expert_check else None
+        # The expert evaluated against itself: a seed its expert fails is one of its failures,
+        # never skipped (the rollout is the expert check).
+        checked = config.expert_check and config.policy != "expert"
+        check = ExpertCheck(task, config.fps) if checked else None
         max_tries = config.max_tries or 3 * config.episodes
         seed = evaluation_seed(config.seed)
         env = None
@@ -458,9 +487,21 @@ def evaluate(
             note(result, f"seed {seed}: {'success' if result.success else 'failure'}")
             seed += 1
     report = _report(task, config, rollouts, skipped, env)
+    if config.policy == "expert":
+        report.expert_failures = [
+            {"seed": r.seed, "reason": r.error or _unmet(report.stages, r)}
+            for r in rollouts
+            if not r.success
+        ]
     report.seconds = time.perf_counter() - t_start
     _write_outputs(report, config)
     return report
+
+
+def _unmet(stages: list[dict[str, Any]], r: RolloutResult) -> str:
+    """Why a rollout that did not raise failed: the stages that did not count."""
+    missing = [s["subgoal"] for s, ok in zip(stages, r.completed, strict=True) if not ok]
+    return f"stage_not_verified after {r.steps} steps: {', '.join(missing)}"
 
 
 def _make_env(task: Task, config: EvaluateConfig, seed: int, fps: float) -> Env:
@@ -504,7 +545,7 @@ def _report(
             config=config.model_dump(),
         )
     completed = np.array([r.completed for r in rollouts], dtype=bool)
-    scores = np.array([s.score if j >= first else 0.0 for j, s in enumerate(stages)])
+    credit = np.array([r.credit for r in rollouts], dtype=float)
     successes = [r.success for r in rollouts]
     return EvaluationReport(
         task=task.name,
@@ -514,7 +555,7 @@ def _report(
         rollouts=rollouts,
         skipped=skipped,
         sr=success_rate(successes),
-        ssr=stage_success_rate(scores, completed),
+        ssr=stage_success_rate([s.score for s in stages], credit, first),
         tl=trajectory_length([r.steps for r in rollouts], successes),
         stage_completion=[float(c) for c in completed.mean(axis=0)],
         coordination=_coordination(task, rollouts, env),

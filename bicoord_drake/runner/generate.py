@@ -23,9 +23,16 @@ from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from bicoord_drake.config import CameraConfig, StationConfig, parse_resolution
+from bicoord_drake.config import (
+    SEED_LIMIT,
+    CameraConfig,
+    StationConfig,
+    check_seed,
+    check_seed_range,
+    parse_resolution,
+)
 from bicoord_drake.data.episode import (
     EpisodeEntry,
     EpisodeLayout,
@@ -52,7 +59,7 @@ class GenerateConfig(BaseModel):
 
     task: str
     episodes: int = Field(10, ge=1, description="successful episodes to produce")
-    seed: int = Field(0, ge=0, description="first seed to try")
+    seed: int = Field(0, description="first seed to try, in [0, 2**32)")
     out: str = "data"
     resolution: str = "320x240"
     fps: float = Field(15.0, gt=0, le=100, description="control and recording rate, Hz")
@@ -68,6 +75,16 @@ class GenerateConfig(BaseModel):
     def _resolution(cls, value: str) -> str:
         parse_resolution(value)
         return value
+
+    @field_validator("seed")
+    @classmethod
+    def _seed(cls, value: int) -> int:
+        return check_seed(value)
+
+    @model_validator(mode="after")
+    def _seeds_in_range(self) -> GenerateConfig:
+        check_seed_range(self.seed, self.max_tries or 5 * self.episodes)
+        return self
 
     def station_config(self) -> StationConfig:
         width, height = parse_resolution(self.resolution)
@@ -96,7 +113,11 @@ class EpisodeResult:
 def run_expert(
     task: Task, seed: int, station_config: StationConfig, depth: bool = False
 ) -> EpisodeResult:
-    """Run `task`'s expert for `seed` in physics and verify every stage."""
+    """Run `task`'s expert for `seed` in physics and verify every stage.
+
+    Any failure of the seed (planning, a stage not verified, an annotation that cannot be made)
+    is returned with its reason; a ValueError only for a seed outside [0, 2**32)."""
+    seed = check_seed(seed)
     t0 = time.perf_counter()
     scene = task.sample_scene(seed)
     sim = Simulation(build_station(scene, station_config))
@@ -130,11 +151,15 @@ def run_expert(
         return EpisodeResult(
             seed, False, f"stage_not_verified: {', '.join(failed)}", timings=timings
         )
+    try:
+        rows = monitor.annotations(len(recorder))
+    except ValueError as err:  # cannot happen when success holds; never a crash of the run
+        return EpisodeResult(seed, False, f"annotation: {err}", timings=timings)
     return EpisodeResult(
         seed,
         True,
         recorder=recorder,
-        rows=monitor.annotations(),
+        rows=rows,
         instruction=instruction,
         scene=scene,
         timings=timings,
@@ -185,6 +210,7 @@ def generate(
                 len(pending) < config.workers
                 and kept + len(pending) < config.episodes
                 and tried + len(pending) < max_tries
+                and next_seed < SEED_LIMIT
             ):
                 pending[
                     pool.submit(_run_seed, task.name, next_seed, station_config, config.depth)
@@ -207,8 +233,12 @@ def generate(
 def _run_seed(
     task_name: str, seed: int, station_config: StationConfig, depth: bool
 ) -> EpisodeResult:
-    """One seed, in a worker process (or inline)."""
-    return run_expert(get_task(task_name), seed, station_config, depth=depth)
+    """One seed, in a worker process (or inline): an unexpected error of the seed (a bug in an
+    expert, a simulator fault) is that seed's failure with its reason, not the run's end."""
+    try:
+        return run_expert(get_task(task_name), seed, station_config, depth=depth)
+    except Exception as exc:  # noqa: BLE001 - recorded in the manifest with the traceback's tail
+        return EpisodeResult(seed, False, f"crashed: {format_failure(exc)}")
 
 
 def _record(

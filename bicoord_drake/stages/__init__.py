@@ -4,9 +4,15 @@ The same predicates annotate demonstrations (frame ranges), score rollouts (SSR)
 success, so labels and scores can never disagree.
 """
 
+from bicoord_drake.metrics.evaluation import stage_score
 from bicoord_drake.stages import predicates
 from bicoord_drake.stages.monitor import StageMonitor, check_rows, stage_index_from_rows
-from bicoord_drake.stages.stage import Stage, StageKind, WorldState, resolve_dependencies
+from bicoord_drake.stages.stage import (
+    Stage,
+    StageKind,
+    WorldState,
+    resolve_dependencies,
+)
 
 __all__ = [
     "Stage",
@@ -17,4 +23,5 @@ __all__ = [
     "predicates",
     "resolve_dependencies",
     "stage_index_from_rows",
+    "stage_score",
 ]

@@ -5,15 +5,22 @@ Frame convention: call :meth:`StageMonitor.update` once per recorded frame, with
 update ``t`` tells whether frame ``t``'s action achieved a sub-goal, and a stage completed at
 update ``t`` ends after frame ``t`` (its annotation row ends at ``t + 1``).
 
-Rollouts (PRODUCT.md, Evaluation): a transient stage's own credit is latched (the best value seen
-at any update); a persistent stage's is its value at the end (:meth:`finish`, or the latest update
-while the rollout runs). A stage counts when its credit is 1 and every stage it depends on counts;
-a stage whose dependencies do not count gets no credit. ``score() = sum_j s_j * credit_j``.
+Counting (PRODUCT.md, Evaluation), the same rule for rollouts and demonstrations: a stage's
+credit comes only from updates *strictly after* the update at which every stage it depends on
+counted (given stages count before the first update). A transient stage's credit is the best
+value at such an update (latched); a persistent stage's is its value at the end (:meth:`finish`,
+or the latest update), and it needs at least one such update. A stage counts when its credit
+is 1; it *completed* at the first such update at which it held in full. So the same events in
+the wrong order give the dependent stage 0. ``score() = stage_score(scores, credit, given)``.
 
-Demonstrations: stage ``j`` spans from the end of stage ``j - 1`` to the first update, strictly
-after stage ``j - 1`` completed, at which stage ``j`` holds in full; the last stage runs to ``T``.
-Rows are ``[start, end, subgoal, left, right, score]``, contiguous, half-open, covering ``[0, T)``,
-and each has at least one frame.
+Demonstrations: stage ``j``'s row ends after the update at which it completed (the last stage
+runs to ``T``). Rows are ``[start, end, subgoal, left, right, score]``, contiguous, half-open,
+covering ``[0, T)``, and each has at least one frame. :attr:`StageMonitor.success` holds only
+when every stage counts *and* these rows exist, so success and :meth:`annotations` agree.
+
+Stateful predicates (e.g. :func:`~bicoord_drake.stages.predicates.held_for`) are reset by
+:meth:`StageMonitor.reset`, which the constructor calls: one monitor per episode, or a reset
+before each.
 """
 
 from __future__ import annotations
@@ -22,6 +29,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bicoord_drake.metrics.evaluation import stage_score
+from bicoord_drake.stages.predicates import reset_predicate
 from bicoord_drake.stages.stage import Stage, WorldState, resolve_dependencies
 
 _FULL = 1.0 - 1e-9
@@ -41,9 +50,11 @@ class StageMonitor:
         self.reset()
 
     def reset(self) -> None:
-        """Forget every update (start a new rollout)."""
+        """Start a new episode: forget every update and reset every stateful predicate."""
         self._history: list[np.ndarray] = []
         self._final: np.ndarray | None = None
+        for stage in self.stages:
+            reset_predicate(stage.predicate)
 
     # ---------------------------------------------------------------- stepping
     def update(self, state: WorldState) -> None:
@@ -78,81 +89,98 @@ class StageMonitor:
         return np.array(self._history).reshape(-1, len(self.stages))
 
     # ---------------------------------------------------------------- rollout scoring
+    def _walk(self) -> tuple[list[float], list[bool], list[int | None]]:
+        """(credit, counted, completed-at update) per stage (see the module docstring)."""
+        S = len(self.stages)
+        if not self._history:
+            given = [j < self.given for j in range(S)]
+            return [float(g) for g in given], given, [-1 if g else None for g in given]
+        H = self.history.copy()
+        end = self._final if self._final is not None else H[-1]
+        persistent = np.array([s.kind == "persistent" for s in self.stages])
+        H[-1, persistent] = end[persistent]
+        credit: list[float] = [1.0] * self.given
+        counted: list[bool] = [True] * self.given
+        at: list[int | None] = [-1] * self.given
+        for j in range(self.given, len(self.stages)):
+            deps = self.dependencies[j]
+            own, done, first = 0.0, False, None
+            if all(counted[d] for d in deps):
+                after = max([at[d] for d in deps], default=-1) + 1
+                window = H[after:, j]
+                if len(window):
+                    own = float(window.max() if self.stages[j].kind == "transient" else window[-1])
+                hits = np.flatnonzero(window >= _FULL)
+                done = own >= _FULL and len(hits) > 0
+                first = int(after + hits[0]) if done else None
+            credit.append(own)
+            counted.append(done)
+            at.append(first)
+        return credit, counted, at
+
     def credit(self) -> list[float]:
         """Per stage credit in [0, 1] after latching and dependencies."""
-        if not self._history:
-            return [0.0] * len(self.stages)
-        history = self.history
-        end = self._final if self._final is not None else history[-1]
-        own = [
-            history[:, j].max() if s.kind == "transient" else end[j]
-            for j, s in enumerate(self.stages)
-        ]
-        counted: list[bool] = []
-        credit: list[float] = []
-        for j, deps in enumerate(self.dependencies):
-            ok = all(counted[d] for d in deps)
-            credit.append(float(own[j]) if ok else 0.0)
-            counted.append(ok and own[j] >= _FULL)
-        return credit
+        return self._walk()[0]
 
     def completed(self) -> list[bool]:
         """Per stage: does it count (PRODUCT.md, Evaluation)?"""
-        return [c >= _FULL for c in self.credit()]
+        return self._walk()[1]
 
     def score(self) -> float:
-        """Stage-weighted score of the rollout, sum_j s_j * credit_j."""
-        return float(sum(s.score * c for s, c in zip(self.stages, self.credit(), strict=True)))
+        """Stage-weighted score of the rollout: :func:`stage_score` of the credits of the
+        stages it was not given (a rollout reset at stage k is scored on stages k and later)."""
+        return stage_score([s.score for s in self.stages], self.credit(), self.given)
 
     @property
     def success(self) -> bool:
-        """Every stage counts (with persistent stages judged now, or at `finish`)."""
-        return all(self.completed())
+        """Every stage counts (persistent stages judged now, or at `finish`) and the
+        demonstration's stage rows exist (:meth:`annotations` would succeed)."""
+        return self._row_ends(self.frames)[0] is not None
 
     # ---------------------------------------------------------------- annotations
     def completion_frames(self) -> list[int | None]:
-        """Per stage, the update at which it first held in full strictly after the previous
-        stage did (None if it never did)."""
-        history = self.history
-        frames: list[int | None] = []
-        after = -1
-        for j in range(len(self.stages)):
-            if after is None:
-                frames.append(None)
+        """Per stage, the update at which it completed (None if it does not count)."""
+        return self._walk()[2]
+
+    def _row_ends(self, T: int) -> tuple[list[int] | None, str]:
+        """End frame of every stage row, or (None, why not)."""
+        _, counted, at = self._walk()
+        ends: list[int] = []
+        start = 0
+        last = len(self.stages) - 1
+        for j, stage in enumerate(self.stages):
+            if not counted[j]:
+                return None, f"stage {j} ({stage.subgoal!r}) did not count"
+            if j < self.given:  # given before the first update: no frames of its own
+                ends.append(0)
                 continue
-            hits = np.flatnonzero(history[after + 1 :, j] >= _FULL)
-            after = int(after + 1 + hits[0]) if len(hits) else None
-            frames.append(after)
-        return frames
+            end = T if j == last else int(at[j]) + 1
+            if end <= start or end > T:
+                return None, (
+                    f"stage {j} ({stage.subgoal!r}) would span frames [{start}, {end}) of T = {T}"
+                )
+            ends.append(end)
+            start = end
+        return ends, ""
 
     def annotations(self, T: int | None = None) -> list[list]:
         """Rows ``[start, end, subgoal, left, right, score]`` covering ``[0, T)``.
 
-        `T` defaults to the number of updates. Raises ValueError when a stage before the last
-        never completed or a stage would get no frames.
+        `T` defaults to the number of updates. Raises ValueError when a stage does not count or
+        a stage would get no frames (never when :attr:`success` holds and `T` is the number of
+        updates).
         """
+        if self.given:
+            raise ValueError("a rollout that starts at a later stage is not a demonstration")
         T = self.frames if T is None else int(T)
-        rows: list[list] = []
-        start = 0
-        done = self.completion_frames()
-        last = len(self.stages) - 1
-        for j, stage in enumerate(self.stages):
-            if j < last:
-                if done[j] is None:
-                    raise ValueError(
-                        f"stage {j} ({stage.subgoal!r}) never completed; cannot annotate "
-                        "a demonstration that did not reach every sub-goal"
-                    )
-                end = done[j] + 1
-            else:
-                end = T
-            if end <= start or end > T:
-                raise ValueError(
-                    f"stage {j} ({stage.subgoal!r}) would span frames [{start}, {end}) of T = {T}"
-                )
-            rows.append([start, end, stage.subgoal, stage.left, stage.right, stage.score])
-            start = end
-        return rows
+        ends, why = self._row_ends(T)
+        if ends is None:
+            raise ValueError(f"cannot annotate the demonstration: {why}")
+        starts = [0, *ends[:-1]]
+        return [
+            [a, b, s.subgoal, s.left, s.right, s.score]
+            for a, b, s in zip(starts, ends, self.stages, strict=True)
+        ]
 
     def stage_index(self, T: int | None = None) -> np.ndarray:
         """(T,) index of the stage active at each frame."""

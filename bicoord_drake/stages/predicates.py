@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from functools import lru_cache
+from typing import Literal
 
 import numpy as np
 
@@ -28,13 +30,28 @@ _AXES = {"x": 0, "y": 1, "z": 2}
 
 
 class Predicate:
-    """A named function of a :class:`WorldState` returning a bool (or a fraction in [0, 1])."""
+    """A named function of a :class:`WorldState` returning a bool (or a fraction in [0, 1]).
 
-    __slots__ = ("fn", "name")
+    `children`: the predicates it combines; :meth:`reset` reaches every stateful one among them
+    (a predicate with memory, like :func:`held_for`, overrides :meth:`reset`).
+    """
 
-    def __init__(self, fn: Callable[[WorldState], bool | float], name: str) -> None:
+    __slots__ = ("children", "fn", "name")
+
+    def __init__(
+        self,
+        fn: Callable[[WorldState], bool | float],
+        name: str,
+        children: Sequence[Callable] = (),
+    ) -> None:
         self.fn = fn
         self.name = name
+        self.children = tuple(children)
+
+    def reset(self) -> None:
+        """Forget everything seen (the start of an episode): resets every stateful child."""
+        for child in self.children:
+            reset_predicate(child)
 
     def __call__(self, state: WorldState) -> bool | float:
         value = self.fn(state)
@@ -51,6 +68,14 @@ class Predicate:
 
     def __repr__(self) -> str:
         return self.name
+
+
+def reset_predicate(pred: Callable) -> None:
+    """Reset a predicate's memory (and its children's) if it has any; plain functions have
+    none."""
+    reset = getattr(pred, "reset", None)
+    if callable(reset):
+        reset()
 
 
 def _name(p: Callable) -> str:
@@ -167,17 +192,90 @@ def on_table(obj: str, z_tol: float = 0.01, support_z: float = TABLE_TOP) -> Pre
     )
 
 
-def inside(obj: str, container: str, margin: float = 0.0, z_above: float = 0.0) -> Predicate:
-    """`obj`'s centre within `container`'s box, in the container's frame (tilts are handled):
-    xy shrunk by `margin`, z from its bottom to its top + `z_above`."""
+@dataclass(frozen=True)
+class Cavity:
+    """The open inside of a container, in its own frame (z up through the opening).
+
+    ``kind="round"``: a solid of revolution about the frame's z axis whose inner wall runs from
+    `floor_radius` at the inner floor to `rim_radius` at the rim. ``kind="box"``: an inner box of
+    half-extents `half_xy` (x, y). `floor` and `rim` are heights in the container frame.
+    """
+
+    kind: Literal["round", "box"]
+    floor: float
+    rim: float
+    floor_radius: float = 0.0
+    rim_radius: float = 0.0
+    half_xy: tuple[float, float] = (0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("round", "box"):
+            raise ValueError(f"cavity kind must be 'round' or 'box', got {self.kind!r}")
+        if not self.rim > self.floor:
+            raise ValueError(f"cavity rim {self.rim} must be above its floor {self.floor}")
+        size = (self.floor_radius, self.rim_radius) if self.kind == "round" else self.half_xy
+        if min(size) <= 0:
+            raise ValueError(f"a {self.kind} cavity needs positive inner sizes, got {size}")
+
+    def contains_xy(self, p: np.ndarray, margin: float = 0.0) -> bool:
+        """Is the container-frame point `p` within the inner wall (shrunk by `margin`)?"""
+        if self.kind == "box":
+            return bool(np.all(np.abs(p[:2]) <= np.asarray(self.half_xy) - margin))
+        f = float(np.clip((p[2] - self.floor) / (self.rim - self.floor), 0.0, 1.0))
+        radius = self.floor_radius + f * (self.rim_radius - self.floor_radius)
+        return bool(np.hypot(p[0], p[1]) <= radius - margin)
+
+
+def cavity_of(shape: Shape) -> Cavity:
+    """The cavity of a container shape: a :class:`BowlShape`'s inner wall, floor and rim.
+    Other shapes (compounds, boxes) are containers only with an explicit :class:`Cavity`."""
+    if isinstance(shape, BowlShape):
+        return Cavity(
+            kind="round",
+            floor=shape.wall,
+            rim=shape.height,
+            floor_radius=shape.base_radius - shape.wall,
+            rim_radius=shape.radius - shape.wall,
+        )
+    raise ValueError(
+        f"a {shape.kind} shape has no known inside: pass cavity=Cavity(...) to inside()"
+    )
+
+
+def inside(
+    obj: str,
+    container: str,
+    margin: float = 0.0,
+    z_above: float = 0.0,
+    *,
+    cavity: Cavity | None = None,
+    max_tilt: float = math.radians(45),
+    floor_tol: float = 0.005,
+) -> Predicate:
+    """`obj` in `container`: judged in the container's frame against its real inside
+    (:class:`Cavity`, default :func:`cavity_of` its shape).
+
+    Holds when the container stands within `max_tilt` (rad) of upright (an upside-down or
+    tipped container holds nothing), the object's centre lies within the inner wall shrunk by
+    `margin` at its height and no higher than the rim + `z_above` (the stated allowance: e.g.
+    a second object lying on the first), and the object's lowest point is no more than
+    `floor_tol` below the inner floor (resting in it, not under it or on the table beside it).
+    """
 
     def check(s: WorldState) -> bool:
-        lo, hi = local_bounds(s.shape(container))
-        p = s.rotation(container).T @ (centre(s, obj) - s.position(container))
-        in_xy = np.all(p[:2] >= lo[:2] + margin) and np.all(p[:2] <= hi[:2] - margin)
-        return bool(in_xy and lo[2] - 1e-3 <= p[2] <= hi[2] + z_above)
+        cav = cavity if cavity is not None else cavity_of(s.shape(container))
+        if tilt(s, container) > max_tilt:
+            return False
+        R_WC, p_WC = s.rotation(container), s.position(container)
+        p = R_WC.T @ (centre(s, obj) - p_WC)
+        lowest = float(((world_corners(s, obj) - p_WC) @ R_WC)[:, 2].min())
+        return bool(
+            cav.contains_xy(p, margin)
+            and p[2] <= cav.rim + z_above
+            and lowest >= cav.floor - floor_tol
+        )
 
-    return Predicate(check, f"inside({obj!r}, {container!r}, margin={margin})")
+    return Predicate(check, f"inside({obj!r}, {container!r}, margin={margin}, z_above={z_above})")
 
 
 def released(obj: str, open_at: float = OPEN_AT) -> Predicate:
@@ -237,6 +335,71 @@ def at_rest(obj: str, linear_tol: float = 0.01, angular_tol: float = 0.1) -> Pre
     return Predicate(check, f"at_rest({obj!r}, linear_tol={linear_tol}, angular_tol={angular_tol})")
 
 
+class HeldFor(Predicate):
+    """Stateful: `pred` has held in full, without a break, for at least `seconds` of world time
+    (see :func:`held_for`)."""
+
+    __slots__ = ("_last", "_since", "pred", "seconds")
+
+    def __init__(self, pred: Callable, seconds: float) -> None:
+        if seconds < 0:
+            raise ValueError(f"seconds must be >= 0, got {seconds}")
+        super().__init__(self._check, f"held_for({_name(pred)}, {seconds:g} s)", (pred,))
+        self.pred, self.seconds = pred, float(seconds)
+        self.reset()
+
+    def reset(self) -> None:
+        super().reset()
+        self._since: float | None = None
+        self._last = -math.inf
+
+    def _check(self, s: WorldState) -> bool:
+        if s.time < self._last:
+            raise ValueError(
+                f"{self.name}: time went back from {self._last} to {s.time} without a reset "
+                "(StageMonitor.reset() starts a new episode)"
+            )
+        self._last = s.time
+        if float(self.pred(s)) < 1.0:
+            self._since = None
+            return False
+        if self._since is None:
+            self._since = s.time
+        return s.time - self._since >= self.seconds - 1e-9
+
+
+def held_for(pred: Callable, seconds: float) -> HeldFor:
+    """`pred` held in full at every update for the last `seconds` (world time), e.g. objects
+    at rest for 0.3 s, or a placement still there 1 s later. Stateful: its memory is cleared by
+    :meth:`~bicoord_drake.stages.monitor.StageMonitor.reset` at the start of every episode."""
+    return HeldFor(pred, seconds)
+
+
+#: How long placed objects must stay at rest before a placement counts (s).
+SETTLED_FOR = 0.3
+
+
+def hands_free(objects: Sequence[str], open_at: float = OPEN_AT) -> Predicate:
+    """Both grippers commanded open and no finger touching any of `objects`."""
+    objects = tuple(objects)
+
+    def check(s: WorldState) -> bool:
+        opened = all(s.action[i] >= open_at for i in GRIPPER_INDEX.values())
+        return opened and not any(s.touching(o) for o in objects)
+
+    return Predicate(check, f"hands_free({', '.join(map(repr, objects))})")
+
+
+def settled(
+    objects: Sequence[str],
+    seconds: float = SETTLED_FOR,
+    linear_tol: float = 0.01,
+    angular_tol: float = 0.1,
+) -> HeldFor:
+    """Every one of `objects` at rest (:func:`at_rest`), without a break, for `seconds`."""
+    return held_for(all_of(*[at_rest(o, linear_tol, angular_tol) for o in objects]), seconds)
+
+
 def within_xy(obj: str, target_xy: Sequence[float], tol: float = 0.02) -> Predicate:
     """The object's centre within `tol` of a world (x, y)."""
     xy = tuple(float(v) for v in target_xy)
@@ -281,30 +444,33 @@ def cells_filled(
 def all_of(*preds: Callable) -> Predicate:
     """True when every predicate holds in full."""
     return Predicate(
-        lambda s: min(float(p(s)) for p in preds) >= 1.0,
+        lambda s: min([float(p(s)) for p in preds]) >= 1.0,
         "(" + " & ".join(_name(p) for p in preds) + ")",
+        preds,
     )
 
 
 def any_of(*preds: Callable) -> Predicate:
     """True when at least one predicate holds in full."""
     return Predicate(
-        lambda s: any(float(p(s)) >= 1.0 for p in preds),
+        lambda s: max([float(p(s)) for p in preds]) >= 1.0,  # every one sees every state
         "(" + " | ".join(_name(p) for p in preds) + ")",
+        preds,
     )
 
 
 def not_(pred: Callable) -> Predicate:
     """True when the predicate does not hold in full."""
-    return Predicate(lambda s: float(pred(s)) < 1.0, f"~{_name(pred)}")
+    return Predicate(lambda s: float(pred(s)) < 1.0, f"~{_name(pred)}", (pred,))
 
 
 def count_true(preds: Sequence[Callable], k: int) -> Predicate:
     """True when at least `k` of the predicates hold."""
     preds = tuple(preds)
     return Predicate(
-        lambda s: sum(float(p(s)) >= 1.0 for p in preds) >= k,
+        lambda s: sum([float(p(s)) >= 1.0 for p in preds]) >= k,
         f"count_true({k} of [{', '.join(_name(p) for p in preds)}])",
+        preds,
     )
 
 
@@ -312,6 +478,7 @@ def fraction_true(preds: Sequence[Callable]) -> Predicate:
     """Partial credit: the fraction of predicates that hold (the stage counts at 1)."""
     preds = tuple(preds)
     return Predicate(
-        lambda s: sum(float(p(s)) >= 1.0 for p in preds) / len(preds),
+        lambda s: sum([float(p(s)) >= 1.0 for p in preds]) / len(preds),
         f"fraction_true([{', '.join(_name(p) for p in preds)}])",
+        preds,
     )

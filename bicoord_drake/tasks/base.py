@@ -96,7 +96,7 @@ class WorldView:
         return np.array(poses[name])
 
     def arm_positions(self) -> np.ndarray:
-        """Measured joint angles of both arms (12,): left 6 then right 6 (for ``Skills.sync``)."""
+        """Measured joint angles of both arms (12,): left 6 then right 6 (``SkillContext.sync``)."""
         js = self.joint_state()
         return np.concatenate([js[0:6], js[7:13]])
 
@@ -106,7 +106,7 @@ class WorldView:
         return {"left": float(js[6]), "right": float(js[13])}
 
     def object_transforms(self) -> dict:
-        """Every object's pose as a Drake ``RigidTransform`` X_WO (for ``Skills.sync``)."""
+        """Every object's pose as a Drake ``RigidTransform`` X_WO (for ``SkillContext.sync``)."""
         from pydrake.all import Quaternion, RigidTransform
 
         return {

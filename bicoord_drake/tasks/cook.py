@@ -17,17 +17,32 @@ from bicoord_drake.models.scene import TABLE_TOP, Scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.skills import ArmPlan, Motion, Skills
+from bicoord_drake.planning.skills import (
+    ArmPlan,
+    Motion,
+    SkillContext,
+    hold,
+    lift,
+    merge,
+    move,
+    move_tcp,
+    pick,
+    pour,
+    retreat,
+    solve_tcp,
+    toss,
+)
 from bicoord_drake.stages import Stage, WorldState
 from bicoord_drake.stages.predicates import (
     Predicate,
     all_of,
     any_of,
-    at_rest,
     fraction_true,
     inside,
     lifted,
     not_,
+    reset_predicate,
+    settled,
 )
 from bicoord_drake.tasks.base import Task, WorldView
 from bicoord_drake.tasks.registry import register_task
@@ -49,7 +64,7 @@ SKILLET_FRICTION = 0.3
 #: at ROLL_AIM, past the axis (on the non-stick pan it slides on to the far wall anyway), the
 #: second at least ROLL_SPACING from where the first lies, on the other side of it, at most
 #: ROLL_REACH from the axis. The rolls fly with their long axis across the flight
-#: (``Skills.toss``), so they come to lie side by side.
+#: (``skills.toss``), so they come to lie side by side.
 ROLL_AIM, ROLL_SPACING, ROLL_REACH = 0.035, 0.045, 0.045
 #: The plate: 24 cm with a low rim (the rolls leave the pan at up to ~0.7 m/s and must stop on
 #: it). Shifted toward the robot from the reference layout (x in [-0.05, 0], y in
@@ -116,7 +131,7 @@ class Cook(Task):
     second roll, aimed beside the first as measured in the pan. The left arm goes home, the
     right arm shakes the skillet +-5 cm twice and tips it about its rim over the plate.
 
-    The skillet is a rim-held bowl, not a pan with a handle bar: ``Skills.toss`` catches with a
+    The skillet is a rim-held bowl, not a pan with a handle bar: ``skills.toss`` catches with a
     ``BowlShape`` held by its rim, and a straight 12 mm wall is what holds level in the grip
     (benchmarks/bench_skills.md). Its rim is the handle.
 
@@ -210,14 +225,15 @@ class Cook(Task):
     # ---------------------------------------------------------------- stages
     def stages(self, scene: Scene) -> list[Stage]:
         in_pan = [inside(r, "skillet", margin=0.005, z_above=0.02) for r in ROLLS]
-        # On the plate: over it, lying on it or on the other roll lying on it (centre at most
-        # two roll thicknesses above its rim), out of the pan, untouched and at rest.
+        # On the plate: in it, lying on it or on the other roll lying on it (centre at most
+        # two roll thicknesses above its rim), out of the pan, untouched and at rest for 0.3 s.
+        # The skillet may stay in the right hand: serving is a pour, not a placement.
         served = [
             all_of(
                 inside(r, "plate", margin=0.005, z_above=4 * ROLL_RADIUS - 0.01),
                 not_(inside(r, "skillet", z_above=0.02)),
                 _untouched(r),
-                at_rest(r, linear_tol=0.02, angular_tol=0.3),
+                settled([r], linear_tol=0.02, angular_tol=0.3),
             )
             for r in ROLLS
         ]
@@ -258,39 +274,39 @@ class Cook(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        skills = Skills(PlanningModel(scene))
+        ctx = SkillContext(PlanningModel(scene))
         in_pan: list[str] = []
 
         def run(motion: Motion) -> Iterator[np.ndarray]:
             yield from motion.actions()
             poses = view.object_transforms()
-            skills.sync(skills.q, object_poses=poses)
-            skills.refresh_grasps(poses)
-            _park(skills, in_pan)
+            ctx.sync(ctx.q, object_poses=poses)
+            ctx.refresh_grasps(poses)
+            _park(ctx, in_pan)
 
         # ---- stage 1: left picks the far roll, right lifts the skillet by its rim
-        left = skills.pick("left", ROLLS[0], kinds=["top"])
-        right = skills.pick("right", "skillet", kinds=["rim"], lift=0.10)
-        yield from run(skills.merge(left, right))
+        left = pick(ctx, "left", ROLLS[0], kinds=["top"])
+        right = pick(ctx, "right", "skillet", kinds=["rim"], lift=0.10)
+        yield from run(merge(ctx, left, right))
         # ---- stage 2: toss roll 1; pick roll 2 (the skillet waits over the stove); toss it
-        yield from run(_toss(skills, [ROLL_AIM, 0.5 * ROLL_AIM, 0.0]))
+        yield from run(_toss(ctx, [ROLL_AIM, 0.5 * ROLL_AIM, 0.0]))
         in_pan.append(ROLLS[0])
-        _park(skills, in_pan)
-        yield from run(skills.merge(skills.pick("left", ROLLS[1], kinds=["top"]), None))
-        yield from run(_toss(skills, _aim_beside(view, ROLLS[0])))
+        _park(ctx, in_pan)
+        yield from run(merge(ctx, pick(ctx, "left", ROLLS[1], kinds=["top"]), None))
+        yield from run(_toss(ctx, _aim_beside(view, ROLLS[0])))
         in_pan.append(ROLLS[1])
-        _park(skills, in_pan)
+        _park(ctx, in_pan)
         # ---- stage 3: left goes home, right shakes the skillet +-5 cm along x, twice
-        yield from run(skills.merge(skills.retreat("left"), None))
-        yield from run(skills.merge(None, _shake(skills, "right")))
+        yield from run(merge(ctx, retreat(ctx, "left"), None))
+        yield from run(merge(ctx, None, _shake(ctx, "right")))
         # ---- stage 4: right carries the skillet beside the plate and tips the rolls onto it
         plate = scene.object("plate").pose.xyz
-        yield from run(skills.merge(None, _serve(skills, "right", np.array(plate))))
+        yield from run(merge(ctx, None, _serve(ctx, "right", np.array(plate))))
         try:
-            yield from run(skills.merge(None, skills.lift("right", 0.06)))
+            yield from run(merge(ctx, None, lift(ctx, "right", 0.06)))
         except PlanningError:
             pass  # at the edge of reach: stay where the tilt ended
-        final = skills.merge(skills.hold("left", SETTLE_STEPS), skills.hold("right", SETTLE_STEPS))
+        final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
 
@@ -330,20 +346,27 @@ class _Shaken:
     2 * SHAKE_CYCLES - 1 times by >= 70 % of the full 10 cm swing, lifted off the table, with
     both rolls in the skillet the whole time (a roll leaving resets the count).
 
-    Stateful (it follows the rollout frame by frame); a state with a smaller step than the last
-    one seen starts it afresh, so a new rollout with the same stage list is scored correctly."""
+    Stateful (it follows the rollout frame by frame): :meth:`reset`, called by the stage
+    monitor at the start of every episode, starts it afresh; a step going back without a reset
+    is an error."""
 
     def __init__(self, in_pan: list[Predicate]) -> None:
         self.in_pan = in_pan
         self.name = "shaken(skillet, +-5 cm x2, both rolls in)"
-        self._reset(-1)
+        self.reset()
 
-    def _reset(self, step: int) -> None:
-        self._step, self._extreme, self._direction, self._swings = step, None, 0, 0
+    def reset(self) -> None:
+        """Forget the swings seen (a new episode)."""
+        for p in self.in_pan:
+            reset_predicate(p)
+        self._step, self._extreme, self._direction, self._swings = -1, None, 0, 0
 
     def __call__(self, s: WorldState) -> bool:
         if s.step < self._step:
-            self._reset(s.step)
+            raise ValueError(
+                f"{self.name}: step went back from {self._step} to {s.step} without a reset "
+                "(StageMonitor.reset() starts a new episode)"
+            )
         self._step = s.step
         holding = all(p(s) for p in self.in_pan) and lifted("skillet", 0.05)(s)
         if not holding:
@@ -368,7 +391,7 @@ class _Shaken:
 
 
 # -------------------------------------------------------------------- expert helpers
-def _park(skills: Skills, names: list[str]) -> None:
+def _park(ctx: SkillContext, names: list[str]) -> None:
     """Move rolls lying in the held skillet out of the planning model's way.
 
     The model holds one object per gripper, so a roll resting in the pan would stay behind as
@@ -376,7 +399,7 @@ def _park(skills: Skills, names: list[str]) -> None:
     it as part of the pan instead, by leaving it out. Planning only: the physics is untouched.
     """
     for k, name in enumerate(names):
-        skills.model.set_object_pose(name, RigidTransform(PARKED + [0.3 * k, 0, 0]))
+        ctx.model.set_object_pose(name, RigidTransform(PARKED + [0.3 * k, 0, 0]))
 
 
 def _aim_beside(view: WorldView, roll: str) -> list[float]:
@@ -394,14 +417,15 @@ def _aim_beside(view: WorldView, roll: str) -> list[float]:
     return [side * ROLL_REACH, (side * ROLL_REACH + nearest) / 2, nearest]
 
 
-def _toss(skills: Skills, aims: list[float]) -> Motion:
-    """Left throws its roll into the skillet right holds (``Skills.toss``), landing at the first
+def _toss(ctx: SkillContext, aims: list[float]) -> Motion:
+    """Left throws its roll into the skillet right holds (``skills.toss``), landing at the first
     of `aims` (m off the pan's axis along the flight) that plans, trying RELEASES."""
     reasons = []
     options = [(xyz, speed, np.radians(45)) for xyz, speed in RELEASES] + list(STEEP_RELEASES)
     for ((x, y, z), speed, angle), aim in ((o, a) for a in aims for o in options):
         try:
-            return skills.toss(
+            return toss(
+                ctx,
                 "left",
                 "right",
                 release=(x, y, TABLE_TOP + z),
@@ -414,31 +438,31 @@ def _toss(skills: Skills, aims: list[float]) -> Motion:
     raise PlanningError("toss_failed", f"no throw plans ({', '.join(reasons)})")
 
 
-def _shake(skills: Skills, side: str) -> ArmPlan:
+def _shake(ctx: SkillContext, side: str) -> ArmPlan:
     """Shake the held skillet +-SHAKE_AMPLITUDE along x, SHAKE_CYCLES times, level, and back."""
-    X = skills.model.tcp_pose(skills.q, side)
+    X = ctx.model.tcp_pose(ctx.q, side)
     a = SHAKE_AMPLITUDE
     offsets = [a] + [-a, a] * (SHAKE_CYCLES - 1) + [-a, 0.0]
     plans = []
     for dx in offsets:
         X_goal = RigidTransform(X.rotation(), X.translation() + [dx, 0.0, 0.0])
-        plans.append(skills.move_tcp(side, X_goal, label="shake", straight=True))
+        plans.append(move_tcp(ctx, side, X_goal, label="shake", straight=True))
     plan = plans[0].then(*plans[1:])
     plan.label = "shake skillet"
     return plan
 
 
-def _serve(skills: Skills, side: str, plate: np.ndarray) -> ArmPlan:
+def _serve(ctx: SkillContext, side: str, plate: np.ndarray) -> ArmPlan:
     """Carry the skillet, level, so that its rim point toward the pour direction lies over the
     plate's centre, its bottom POUR_HEIGHT above the plate's rim, then tip it about that rim
     point, hold and tilt back. Pour directions (POUR_DIRECTIONS), the skillet's turn about its
     axis (the gripper away from the pour side first) and POUR_ANGLES are tried until the carry
     and the tilt both plan."""
-    held = skills.model.held[side]
-    gripper = skills.model.embodiment.arm.gripper
+    held = ctx.model.held[side]
+    gripper = ctx.model.embodiment.arm.gripper
     X_BT = held.X_GO.inverse() @ RigidTransform([gripper.tcp_x, 0, 0])
-    R_WB = skills.model.held_pose(side, skills.q).rotation()
-    saved = skills.q.copy()
+    R_WB = ctx.model.held_pose(side, ctx.q).rotation()
+    saved = ctx.q.copy()
     reasons = []
     for d in POUR_DIRECTIONS:
         d = np.asarray(d, dtype=float)
@@ -455,16 +479,16 @@ def _serve(skills: Skills, side: str, plate: np.ndarray) -> ArmPlan:
         usable = [o for o in options if o[0] <= POUR_GRIP_ALIGNMENT]
         for _, X_WT in sorted(usable, key=lambda o: o[0]):
             try:
-                q6 = skills.solve_tcp(side, TcpTarget(X_WT))
+                q6 = solve_tcp(ctx, side, TcpTarget(X_WT))
             except PlanningError as err:
                 reasons.append(err.reason)
                 continue
             for angle in POUR_ANGLES:
                 try:
-                    carry = skills.move(side, q6, label="carry to the plate")
-                    tip = skills.pour(side, angle, direction=d, hold_steps=POUR_HOLD)
+                    carry = move(ctx, side, q6, label="carry to the plate")
+                    tip = pour(ctx, side, angle, direction=d, hold_steps=POUR_HOLD)
                 except PlanningError as err:
-                    skills.q = saved.copy()
+                    ctx.q = saved.copy()
                     reasons.append(err.reason)
                     continue
                 plan = carry.then(tip)
@@ -478,7 +502,7 @@ def _serve(skills: Skills, side: str, plate: np.ndarray) -> ArmPlan:
 def _roll(name: str, x: float, y: float, yaw: float) -> SceneObject:
     """A bread roll: an 8 x 4 x 4 cm block (long axis along x turned by `yaw`).
 
-    A block, not a cylinder: with the light throwing grip (``skills.THROW_SQUEEZE``) a lying
+    A block, not a cylinder: with the light throwing grip (``skills.toss.THROW_SQUEEZE``) a lying
     cylinder, held on two contact lines, slipped out of the fingers during the throw's
     acceleration in 3 of 4 throws measured; flat faces hold like the benchmarked cube."""
     rpy = (0.0, 0.0, yaw)

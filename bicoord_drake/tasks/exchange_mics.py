@@ -15,28 +15,36 @@ from bicoord_drake.models.objects import (
     SceneObject,
 )
 from bicoord_drake.models.scene import TABLE_TOP, Scene
-from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import (
     Grasp,
     arm_base,
     compound_grasps,
-    naturalness,
     symmetric_yaws,
 )
-from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.skills import ArmPlan, Motion, Skills
-from bicoord_drake.planning.timing import ARM_SLICES
+from bicoord_drake.planning.skills import (
+    ArmPlan,
+    Motion,
+    SkillContext,
+    fingers_cross,
+    handover,
+    hold,
+    merge,
+    move_tcp,
+    pick,
+    place,
+    retreat,
+)
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     Predicate,
     all_of,
-    at_rest,
     fraction_true,
     held_by,
     lifted,
     on_table,
     released,
+    settled,
     upright,
     within_xy,
 )
@@ -66,7 +74,8 @@ COLORS = {
     "blue": (0.15, 0.3, 0.8, 1.0),
     "gold": (0.85, 0.68, 0.2, 1.0),
 }
-SETTLE_STEPS = 3
+#: Control steps both arms hold still at the end (placed mics at rest for 0.3 s: ``settled``).
+SETTLE_STEPS = 8
 
 
 @register_task
@@ -88,7 +97,8 @@ class ExchangeMics(Task):
     middle, R holds mic L; (5) place crosswise (1.0: 0.5 per mic).
 
     Success: mic R stands upright on the left square and mic L on the right square (centres
-    within 4 cm of the square centres, resting on the table), released and at rest.
+    within 4 cm of the square centres, resting on the table), released (both grippers open,
+    no finger touching it) and at rest for 0.3 s.
     """
 
     name = "exchange_mics"
@@ -152,7 +162,7 @@ class ExchangeMics(Task):
                 on_table(mic),
                 upright(mic),
                 released(mic),
-                at_rest(mic),
+                settled([mic]),
             )
 
         return [
@@ -218,35 +228,35 @@ class ExchangeMics(Task):
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         sq_l, sq_r = scene.draws["square_left"], scene.draws["square_right"]
-        skills = Skills(PlanningModel(scene))
+        ctx = SkillContext(PlanningModel(scene))
 
         def run(motion: Motion) -> Iterator[np.ndarray]:
             yield from motion.actions()
             poses = view.object_transforms()
-            skills.sync(skills.q, object_poses=poses)
-            skills.refresh_grasps(poses)
+            ctx.sync(ctx.q, object_poses=poses)
+            ctx.refresh_grasps(poses)
 
         # ---- stage 1: both pick their mic by the ball head, from above
-        left = _pick_mic(skills, "left", "mic_left", lift=0.12)
-        right = _pick_mic(skills, "right", "mic_right", lift=0.12)
-        yield from run(skills.merge(left, right))
+        left = _pick_mic(ctx, "left", "mic_left", lift=0.12)
+        right = _pick_mic(ctx, "right", "mic_right", lift=0.12)
+        yield from run(merge(ctx, left, right))
         # ---- stage 2: R sets mic R down in the middle while L raises mic L to the handover pose
-        right = skills.place("right", _standing(MIDDLE))
-        left = _carry_to(skills, "left", np.asarray(MEET) + STAGING_OFFSET)
-        yield from run(skills.merge(left, right))
+        right = place(ctx, "right", _standing(MIDDLE))
+        left = _carry_to(ctx, "left", np.asarray(MEET) + STAGING_OFFSET)
+        yield from run(merge(ctx, left, right))
         # ---- stage 3: both arms arrive at once; R grasps the handle, then L lets go
-        yield from run(_handover(skills, "left", "right", "mic_left", np.asarray(MEET)))
+        yield from run(_handover(ctx, "left", "right", np.asarray(MEET)))
         # ---- stage 4: L picks mic R from the middle, R retreats with mic L toward its square
-        right = _carry_to(skills, "right", np.array([sq_r[0] - 0.05, sq_r[1], TABLE_TOP + 0.10]))
-        left = _pick_mic(skills, "left", "mic_right", lift=0.12)
-        yield from run(skills.merge(left, right))
+        right = _carry_to(ctx, "right", np.array([sq_r[0] - 0.05, sq_r[1], TABLE_TOP + 0.10]))
+        left = _pick_mic(ctx, "left", "mic_right", lift=0.12)
+        yield from run(merge(ctx, left, right))
         # ---- stage 5: crosswise placement, both at once
-        right = skills.place("right", _standing(sq_r))
-        left = skills.place("left", _standing(sq_l))
-        yield from run(skills.merge(left, right))
-        left, right = skills.retreat("left"), skills.retreat("right")
-        yield from run(skills.merge(left, right))
-        final = skills.merge(skills.hold("left", SETTLE_STEPS), skills.hold("right", SETTLE_STEPS))
+        right = place(ctx, "right", _standing(sq_r))
+        left = place(ctx, "left", _standing(sq_l))
+        yield from run(merge(ctx, left, right))
+        left, right = retreat(ctx, "left"), retreat(ctx, "right")
+        yield from run(merge(ctx, left, right))
+        final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
 
@@ -303,125 +313,65 @@ def _standing(xy: Sequence[float]) -> RigidTransform:
 
 
 # -------------------------------------------------------------------- expert helpers
-def mic_grasps(skills: Skills, side: str, X_WO: RigidTransform, kind: str = "head") -> list[Grasp]:
+def mic_grasps(
+    ctx: SkillContext, side: str, X_WO: RigidTransform, kind: str = "head"
+) -> list[Grasp]:
     """Grasps of a mic at `X_WO`, best first, with ``X_OG`` in the mic frame: ``head`` = top-down
     across the ball head, ``handle`` = horizontal approach onto the handle's middle."""
-    gripper = skills.model.embodiment.arm.gripper
-    base = arm_base(skills.model.embodiment, side)
+    gripper = ctx.model.embodiment.arm.gripper
+    base = arm_base(ctx.model.embodiment, side)
     part = HEAD_PART if kind == "head" else HANDLE_PART
     grasps = compound_grasps(X_WO, mic_shape(), gripper, base=base, parts=[part])
     return grasps if kind == "head" else [g for g in grasps if g.kind == "side"]
 
 
-def _pick_mic(skills: Skills, side: str, name: str, *, lift: float = 0.10) -> ArmPlan:
+def _pick_mic(ctx: SkillContext, side: str, name: str, *, lift: float = 0.10) -> ArmPlan:
     """Pick a mic top-down across its ball head (``grasps.grasp_candidates`` has no compound
     shapes, so the head's grasps are made here), then lift."""
-    grasps = mic_grasps(skills, side, skills.model.object_pose(name), "head")
-    return skills.pick(side, name, lift=lift, grasps=grasps)
+    grasps = mic_grasps(ctx, side, ctx.model.object_pose(name), "head")
+    return pick(ctx, side, name, lift=lift, grasps=grasps)
 
 
-def _carry_to(skills: Skills, side: str, p_bottom: np.ndarray) -> ArmPlan:
+def _carry_to(ctx: SkillContext, side: str, p_bottom: np.ndarray) -> ArmPlan:
     """Carry the mic held by `side` (upright, same yaw) so that its bottom is at `p_bottom`."""
-    held = skills.model.held[side]
-    X_WO = skills.model.held_pose(side, skills.q)
+    held = ctx.model.held[side]
+    X_WO = ctx.model.held_pose(side, ctx.q)
     R = X_WO.rotation().matrix()
     yaw = float(np.arctan2(R[1, 0], R[0, 0]))
     X_goal = RigidTransform(RotationMatrix.MakeZRotation(yaw), p_bottom)
-    X_GT = RigidTransform([skills.model.embodiment.arm.gripper.tcp_x, 0.0, 0.0])
+    X_GT = RigidTransform([ctx.model.embodiment.arm.gripper.tcp_x, 0.0, 0.0])
     X_WT = X_goal @ held.X_GO.inverse() @ X_GT
-    return skills.move_tcp(side, X_WT, label=f"carry {held.name}")
+    return move_tcp(ctx, side, X_WT, label=f"carry {held.name}")
 
 
 def _handover(
-    skills: Skills,
+    ctx: SkillContext,
     giver: str,
     receiver: str,
-    name: str,
     p_meet: np.ndarray,
     *,
     clearance: float = 0.005,
     retreat: float = 0.06,
 ) -> Motion:
-    """:meth:`Skills.handover` for a mic held by its head: the receiver takes the handle from
-    the side, fingers across the giver's. Both arms arrive at the same control step (the
-    skill's rendezvous), the receiver closes, then the giver opens and backs off."""
-    held = skills.model.held[giver]
-    gripper = skills.model.embodiment.arm.gripper
-    X_GT = RigidTransform([gripper.tcp_x, 0.0, 0.0])
-    X_OT = held.X_GO.inverse() @ X_GT
-    base_g = arm_base(skills.model.embodiment, giver)
-    closed = float(np.clip(gripper.opening(HEAD_RADIUS), 0.0, 1.0))
-    with skills._transaction():
-        skills.model.set_gripper(giver, closed)
-        try:
-            metas = []
-            for yaw in symmetric_yaws(CylinderShape(radius=1.0, length=1.0), n_round=12):
-                X_WO = RigidTransform(RotationMatrix.MakeZRotation(yaw), p_meet)
-                X_WTg = X_WO @ X_OT
-                metas.append((naturalness(X_WTg, base_g), X_WO, X_WTg))
-            metas.sort(key=lambda m: -m[0])
-            found, reasons = None, []
-            for _, X_WO, X_WTg in metas:
-                Rg = X_WTg.rotation().matrix()
-                for grasp in mic_grasps(skills, receiver, X_WO, "handle"):
-                    Rr = grasp.X_WG.rotation().matrix()
-                    if abs(Rr[:, 1] @ Rg[:, 1]) > 0.3:
-                        continue  # fingers must cross the giver's
-                    X_pre = grasp.X_WPre
-                    try:
-                        q_meet = skills.ik.solve(
-                            {giver: TcpTarget(X_WTg), receiver: TcpTarget(grasp.X_WG)},
-                            clearance=clearance,
-                            env_clearance=skills.env_clearance,
-                            seed=skills.q,
-                            restarts=4,
-                        )
-                        q_pre = skills.ik.solve_single(
-                            receiver,
-                            TcpTarget(X_pre),
-                            q_meet[ARM_SLICES[giver]],
-                            seed=q_meet,
-                            clearance=clearance,
-                            env_clearance=skills.env_clearance,
-                            restarts=4,
-                        )
-                    except PlanningError as err:
-                        reasons.append(err.reason)
-                        continue
-                    skills.model.set_padding(clearance * 0.8, 0.0)
-                    if not skills._edge_free(q_pre, q_meet):
-                        reasons.append("approach_in_collision")
-                        continue
-                    found = (q_meet, q_pre)
-                    break
-                if found:
-                    break
-            if found is None:
-                raise PlanningError(
-                    "handover_failed",
-                    f"no meeting for {name!r} at {np.round(p_meet, 3)} "
-                    f"({', '.join(sorted(set(reasons))) or 'no crossing grasp'})",
-                )
-            q_meet, q_pre = found
-            motion = skills._meet_motion(giver, receiver, q_meet, q_pre, clearance)
-        finally:
-            skills.model.set_gripper(giver, skills.model.embodiment.home_opening)
-        X_WO = skills.model.held_pose(giver, q_meet)
-        skills.q = q_meet.copy()
-        close = skills.grip(receiver, 0.0, label="receive")
-        skills.model.detach(giver, X_WO=X_WO)
-        skills.model.attach(name, receiver, skills.q, X_WO)
-        opened = skills.grip(giver, 1.0, label="let go")
-        X = skills.model.tcp_pose(skills.q, giver)
-        X_back = RigidTransform(X.rotation(), X.translation() - retreat * X.rotation().col(0))
-        back = skills.move_tcp(
-            giver, X_back, label="back off", ignore=[name], straight=True, clearance=clearance
+    """:func:`~bicoord_drake.planning.skills.handover` of a mic held upright by its head: the
+    receiver takes the handle from the side, fingers across the giver's. Both arms arrive at
+    the same control step (the skill's rendezvous), the receiver closes, then the giver opens
+    and backs off."""
+
+    def handle_grasps(X_WO: RigidTransform, X_WTg: RigidTransform) -> Iterator[Grasp]:
+        return (
+            g for g in mic_grasps(ctx, receiver, X_WO, "handle") if fingers_cross(g.X_WG, X_WTg)
         )
-        rest = skills._sequence([{receiver: close}, {giver: opened}, {giver: back}], motion)
-        i_receive = motion.num_steps + close.num_steps - 2
-        i_release = i_receive + opened.num_steps - 1
-        rest.events += [(i_receive, receiver, "attach", name), (i_release, giver, "detach", name)]
-        rest.events.sort()
-        rest.label = f"handover {name} {giver}->{receiver}"
-        rest.info.update(rendezvous=motion.info.get("rendezvous"), meet_index=motion.num_steps - 1)
-        return rest
+
+    upright = symmetric_yaws(CylinderShape(radius=1.0, length=1.0), n_round=12)
+    return handover(
+        ctx,
+        giver,
+        receiver,
+        meet=p_meet,
+        clearance=clearance,
+        retreat=retreat,
+        orientations=[RotationMatrix.MakeZRotation(yaw) for yaw in upright],
+        receiver_grasps=handle_grasps,
+        grip_half_width=HEAD_RADIUS,
+    )

@@ -19,14 +19,28 @@ from bicoord_drake.planning.grasps import (
     table_target,
 )
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.skills import ArmPlan, Motion, Skills
+from bicoord_drake.planning.skills import (
+    ArmPlan,
+    Motion,
+    SkillContext,
+    hold,
+    merge,
+    move,
+    pick,
+    place,
+    pour,
+    solve_tcp,
+)
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
+    Cavity,
     all_of,
-    at_rest,
+    hands_free,
     inside,
     lifted,
-    released,
+    on_table,
+    settled,
+    upright,
     within_xy,
 )
 from bicoord_drake.tasks.base import Task, WorldView
@@ -47,6 +61,15 @@ GRIP_AZIMUTH = (np.radians(-165), np.radians(-60))
 GRIP_MARGIN = 0.004  # pad-to-wall gap per side (m) of the narrowed jaw that picks it
 #: The spout lip's outer top edge in the bowl frame: the pivot of the pour and the exit point.
 LIP_POINT = np.array([POUR_RADIUS, 0.0, POUR_BASE + POUR_LIP])
+#: The pouring bowl's inside (a compound shape): inside its wall, above its base, below its
+#: rim (the spout's low lip is part of the rim's circle).
+POUR_CAVITY = Cavity(
+    kind="round",
+    floor=POUR_BASE,
+    rim=POUR_HEIGHT,
+    floor_radius=POUR_RADIUS - POUR_WALL,
+    rim_radius=POUR_RADIUS - POUR_WALL,
+)
 # ---- the catching bowl (right): the straight 12 mm-wall bowl of the toss trials.
 CATCH_BOWL = BowlShape(radius=0.075, base_radius=0.075, height=0.05, wall=0.012)
 CUBE = 0.02
@@ -100,8 +123,9 @@ class HandoverBlockWithBowls(Task):
     Stages: (1) both bowls lifted, cube still in the left one; (2) the cube poured into the
     right bowl; (3) the right bowl set on the target, the left bowl put back.
 
-    Success: the right bowl within 2.5 cm (xy) of the target centre with the cube inside,
-    released (both grippers open, no finger touching either bowl), bowl and cube at rest.
+    Success: the right bowl standing upright on the table within 2.5 cm (xy) of the target
+    centre with the cube inside, released (both grippers open, no finger touching either bowl
+    or the cube), bowl and cube at rest for 0.3 s.
     """
 
     name = "handover_block_with_bowls"
@@ -205,7 +229,7 @@ class HandoverBlockWithBowls(Task):
                 all_of(
                     lifted("pour_bowl", 0.05),
                     lifted("catch_bowl", 0.05),
-                    inside("cube", "pour_bowl"),
+                    inside("cube", "pour_bowl", cavity=POUR_CAVITY),
                 ),
                 "transient",
             ),
@@ -224,11 +248,11 @@ class HandoverBlockWithBowls(Task):
                 0.5,
                 all_of(
                     within_xy("catch_bowl", target_xy, 0.025),
+                    on_table("catch_bowl"),
+                    upright("catch_bowl"),
                     inside("cube", "catch_bowl"),
-                    released("catch_bowl"),
-                    released("pour_bowl"),
-                    at_rest("catch_bowl"),
-                    at_rest("cube"),
+                    hands_free(["catch_bowl", "pour_bowl", "cube"]),
+                    settled(["catch_bowl", "cube"]),
                 ),
                 "persistent",
             ),
@@ -236,44 +260,42 @@ class HandoverBlockWithBowls(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        skills = Skills(PlanningModel(scene), speed=SPEED, clearance=CLEARANCE)
+        ctx = SkillContext(PlanningModel(scene), speed=SPEED, clearance=CLEARANCE)
         left_xy = scene.draws["left_bowl_xy"]
         target_xy = scene.draws["target_xy"]
 
         def run(motion: Motion) -> Iterator[np.ndarray]:
             yield from motion.actions()
             poses = view.object_transforms()
-            skills.sync(skills.q, object_poses=poses)
-            skills.refresh_grasps(poses)
+            ctx.sync(ctx.q, object_poses=poses)
+            ctx.refresh_grasps(poses)
 
         # The cube only ever rides in a bowl: the planner leaves it out (the bowls and grippers
         # are checked against each other and the table).
-        with skills.model.ignoring(["cube"]):
+        with ctx.model.ignoring(["cube"]):
             # ---- stage 1: both arms lift their bowls by the rim (left: away from the spout)
-            left = _pick_pour_bowl(skills, lift=0.12)
-            right = skills.pick("right", "catch_bowl", kinds=["rim"], lift=0.12)
-            yield from run(skills.merge(left, right))
+            left = _pick_pour_bowl(ctx, lift=0.12)
+            right = pick(ctx, "right", "catch_bowl", kinds=["rim"], lift=0.12)
+            yield from run(merge(ctx, left, right))
             # ---- stage 2: right holds its bowl under the meeting point, left brings its spout
             # lip above it; only when the measured rims are aligned does left tilt.
-            right = skills.move("right", _catch_joints(skills), label="hold under the spout")
-            left = skills.move("left", _spout_joints(skills), label="align the spout")
-            yield from run(skills.merge(left, right))
+            right = move(ctx, "right", _catch_joints(ctx), label="hold under the spout")
+            left = move(ctx, "left", _spout_joints(ctx), label="align the spout")
+            yield from run(merge(ctx, left, right))
             for attempt in range(2):
                 error = _misalignment(view)
                 if error is None:
                     break
                 if attempt == 1:
                     raise PlanningError("rims_not_aligned", error)
-                left = skills.move("left", _spout_joints(skills), label="re-align the spout")
-                yield from run(skills.merge(left, None))
-            yield from run(skills.merge(_pour_at_lip(skills, POUR_ANGLE, POUR_HOLD), None))
+                left = move(ctx, "left", _spout_joints(ctx), label="re-align the spout")
+                yield from run(merge(ctx, left, None))
+            yield from run(merge(ctx, _pour_at_lip(ctx, POUR_ANGLE, POUR_HOLD), None))
             # ---- stage 3: left puts its empty bowl back, right sets its bowl on the target
-            left = skills.place("left", table_target(left_xy, scene.object("pour_bowl").shape))
-            right = skills.place("right", table_target(target_xy, CATCH_BOWL))
-            yield from run(skills.merge(left, right))
-            final = skills.merge(
-                skills.hold("left", SETTLE_STEPS), skills.hold("right", SETTLE_STEPS)
-            )
+            left = place(ctx, "left", table_target(left_xy, scene.object("pour_bowl").shape))
+            right = place(ctx, "right", table_target(target_xy, CATCH_BOWL))
+            yield from run(merge(ctx, left, right))
+            final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
             yield from final.actions()
 
 
@@ -305,11 +327,11 @@ def pour_bowl_shape() -> CompoundShape:
     return CompoundShape(parts=tuple(parts))
 
 
-def _pick_pour_bowl(skills: Skills, lift: float) -> ArmPlan:
+def _pick_pour_bowl(ctx: SkillContext, lift: float) -> ArmPlan:
     """Left picks the pouring bowl by its rim on its own side, never at the spout (a pick of a
     compound shape: the rim grasps of the equivalent straight bowl, filtered by azimuth)."""
     side, name = "left", "pour_bowl"
-    X_WO = skills.model.object_pose(name)
+    X_WO = ctx.model.object_pose(name)
     proxy = BowlShape(
         radius=POUR_RADIUS, base_radius=POUR_RADIUS, height=POUR_HEIGHT, wall=POUR_WALL
     )
@@ -318,8 +340,8 @@ def _pick_pour_bowl(skills: Skills, lift: float) -> ArmPlan:
     grasps = bowl_rim_grasps(
         X_WO,
         proxy,
-        skills.model.embodiment.arm.gripper,
-        base=arm_base(skills.model.embodiment, side),
+        ctx.model.embodiment.arm.gripper,
+        base=arm_base(ctx.model.embodiment, side),
         params=params,
     )
     X_OW = X_WO.inverse()
@@ -333,19 +355,19 @@ def _pick_pour_bowl(skills: Skills, lift: float) -> ArmPlan:
 
     # The jaw only as wide as the wall plus a few mm: fully open, the inner finger would come
     # down near the bowl's centre and sweep the cube against the wall, where it stays pinned.
-    gripper = skills.model.embodiment.arm.gripper
+    gripper = ctx.model.embodiment.arm.gripper
     opening = float(gripper.opening(POUR_WALL / 2 + GRIP_MARGIN))
     candidates = [g for g in grasps if on_the_left_side(g)]
-    return skills.pick(side, name, lift=lift, grasps=candidates, approach_opening=opening)
+    return pick(ctx, side, name, lift=lift, grasps=candidates, approach_opening=opening)
 
 
-def _catch_joints(skills: Skills) -> np.ndarray:
+def _catch_joints(ctx: SkillContext) -> np.ndarray:
     """Right-arm joints holding the catching bowl level under the spout, its gripper on the
     side away from the pour and from the left wrist (+x, then toward the robot)."""
     from bicoord_drake.planning.ik import TcpTarget
 
-    held = skills.model.held["right"]
-    tcp_x = skills.model.embodiment.arm.gripper.tcp_x
+    held = ctx.model.held["right"]
+    tcp_x = ctx.model.embodiment.arm.gripper.tcp_x
     X_BT = held.X_GO.inverse() @ RigidTransform([tcp_x, 0.0, 0.0])
     p_BT = X_BT.translation()
     a0 = float(np.arctan2(p_BT[1], p_BT[0]))  # the grip's azimuth in the bowl frame
@@ -354,17 +376,17 @@ def _catch_joints(skills: Skills) -> np.ndarray:
     for azimuth in np.radians([-30, -10, -50, 10, -70]):
         X_WB = RigidTransform(RotationMatrix.MakeZRotation(azimuth - a0), p_bowl)
         try:
-            return skills.solve_tcp("right", TcpTarget(X_WB @ X_BT))
+            return solve_tcp(ctx, "right", TcpTarget(X_WB @ X_BT))
         except PlanningError as err:
             reasons.append(err.reason)
     raise PlanningError("catch_unreachable", f"right cannot hold its bowl there ({reasons})")
 
 
-def _spout_joints(skills: Skills) -> np.ndarray:
+def _spout_joints(ctx: SkillContext) -> np.ndarray:
     """Left-arm joints holding the pouring bowl level with its spout lip at LIP_AT, facing +x
     (small yaws tried if that is out of reach)."""
-    held = skills.model.held["left"]
-    tcp_x = skills.model.embodiment.arm.gripper.tcp_x
+    held = ctx.model.held["left"]
+    tcp_x = ctx.model.embodiment.arm.gripper.tcp_x
     X_BT = held.X_GO.inverse() @ RigidTransform([tcp_x, 0.0, 0.0])
     from bicoord_drake.planning.ik import TcpTarget
 
@@ -373,7 +395,7 @@ def _spout_joints(skills: Skills) -> np.ndarray:
         R_WB = RotationMatrix.MakeZRotation(POUR_YAW + yaw)
         X_WB = RigidTransform(R_WB, LIP_AT - R_WB @ LIP_POINT)
         try:
-            return skills.solve_tcp("left", TcpTarget(X_WB @ X_BT))
+            return solve_tcp(ctx, "left", TcpTarget(X_WB @ X_BT))
         except PlanningError as err:
             reasons.append(err.reason)
     raise PlanningError("align_unreachable", f"left cannot hold the spout at LIP_AT ({reasons})")
@@ -398,11 +420,12 @@ def _misalignment(view: WorldView) -> str | None:
     return None
 
 
-def _pour_at_lip(skills: Skills, angle: float, hold_steps: int) -> ArmPlan:
+def _pour_at_lip(ctx: SkillContext, angle: float, hold_steps: int) -> ArmPlan:
     """Tilt the pouring bowl by `angle` toward its spout about the horizontal axis through the
     spout's lip (the lip stays put), hold, and tilt back."""
-    X_WO = skills.model.held_pose("left", skills.q)
-    plan = skills.pour(
+    X_WO = ctx.model.held_pose("left", ctx.q)
+    plan = pour(
+        ctx,
         "left",
         angle,
         direction=X_WO.rotation().col(0),

@@ -10,9 +10,16 @@ from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.skills import Motion, Skills
+from bicoord_drake.planning.skills import Motion, SkillContext, hold, merge, pick, place, retreat
 from bicoord_drake.stages import Stage
-from bicoord_drake.stages.predicates import all_of, cells_filled, count_true, lifted, released
+from bicoord_drake.stages.predicates import (
+    all_of,
+    cells_filled,
+    count_true,
+    hands_free,
+    lifted,
+    settled,
+)
 from bicoord_drake.tasks.base import Task, WorldView
 from bicoord_drake.tasks.registry import register_task
 
@@ -27,7 +34,9 @@ COLORS = {
     "purple": (0.6, 0.3, 0.75, 1.0),
     "orange": (0.95, 0.5, 0.1, 1.0),
 }
-SETTLE_STEPS = 3
+#: Control steps both arms hold still at the end: the last placement must be seen at rest
+#: for 0.3 s (``settled``).
+SETTLE_STEPS = 8
 
 
 @register_task
@@ -44,7 +53,8 @@ class Jigsaw(Task):
     Stages: (1) both pick a spare; (2) left fills a cell while right holds; (3) right fills while
     left picks the next spare; (4) left fills while right picks; (5) right fills, left retreats.
 
-    Success: all nine cells hold a cube (centre within 1 cm, resting on the table), released.
+    Success: all nine cells hold a cube (centre within 1 cm, resting on the table), both
+    grippers open, no finger touching any cube, every cube at rest for 0.3 s.
     """
 
     name = "jigsaw"
@@ -140,7 +150,7 @@ class Jigsaw(Task):
                 "retreat",
                 "place its cube in the last cell",
                 0.25,
-                all_of(filled(9), *[released(c) for c in spares]),
+                all_of(filled(9), hands_free(cubes), settled(cubes)),
                 "persistent",
             ),
         ]
@@ -150,13 +160,13 @@ class Jigsaw(Task):
         empty = [CELLS[i] for i in range(len(CELLS)) if i not in scene.draws["filled_cells"]]
         empty.sort(key=lambda xy: (xy[0], -xy[1]))  # left to right, far to near
         targets = {"left": empty[:2], "right": empty[2:][::-1]}
-        skills = Skills(PlanningModel(scene))
+        ctx = SkillContext(PlanningModel(scene))
 
         def run(motion: Motion) -> Iterator[np.ndarray]:
             yield from motion.actions()
             poses = view.object_transforms()
-            skills.sync(skills.q, object_poses=poses)
-            skills.refresh_grasps(poses)
+            ctx.sync(ctx.q, object_poses=poses)
+            ctx.refresh_grasps(poses)
 
         def goal(xy):
             from pydrake.all import RigidTransform
@@ -166,24 +176,24 @@ class Jigsaw(Task):
         # Within a stage, the arm leaving the grid is planned first, so the arm coming in
         # plans around where the other will be; merge() then staggers them if they would meet.
         # ---- stage 1: both pick a spare (the one nearer the grid first)
-        left = skills.pick("left", "spare_left_1")
-        right = skills.pick("right", "spare_right_1")
-        yield from run(skills.merge(left, right))
+        left = pick(ctx, "left", "spare_left_1")
+        right = pick(ctx, "right", "spare_right_1")
+        yield from run(merge(ctx, left, right))
         # ---- stage 2: left fills its first cell, right holds its cube clear of the grid
-        yield from run(skills.merge(skills.place("left", goal(targets["left"][0])), None))
+        yield from run(merge(ctx, place(ctx, "left", goal(targets["left"][0])), None))
         # ---- stage 3: right fills, left picks its second spare
-        left = skills.pick("left", "spare_left_0")
-        right = skills.place("right", goal(targets["right"][0]))
-        yield from run(skills.merge(left, right))
+        left = pick(ctx, "left", "spare_left_0")
+        right = place(ctx, "right", goal(targets["right"][0]))
+        yield from run(merge(ctx, left, right))
         # ---- stage 4: left fills, right picks its second spare
-        right = skills.pick("right", "spare_right_0")
-        left = skills.place("left", goal(targets["left"][1]))
-        yield from run(skills.merge(left, right))
+        right = pick(ctx, "right", "spare_right_0")
+        left = place(ctx, "left", goal(targets["left"][1]))
+        yield from run(merge(ctx, left, right))
         # ---- stage 5: right fills the last cell, left retreats
-        left = skills.retreat("left")
-        right = skills.place("right", goal(targets["right"][1]))
-        yield from run(skills.merge(left, right))
-        final = skills.merge(skills.hold("left", SETTLE_STEPS), skills.hold("right", SETTLE_STEPS))
+        left = retreat(ctx, "left")
+        right = place(ctx, "right", goal(targets["right"][1]))
+        yield from run(merge(ctx, left, right))
+        final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
 

@@ -114,6 +114,32 @@ def test_no_traceback_on_user_errors(tmp_path):
     assert run.stderr.splitlines() == [
         f"error: {tmp_path / 'nope'}: no such file or directory",
         f"error: {bad}: not an HDF5 file",
-        "error: no episode could be measured",
+        "error: no episode could be measured (2 problem(s), each named above)",
     ]
     assert run.stdout == ""
+
+
+def test_a_directory_of_unreadable_files_names_each_file_and_why(
+    cli, tmp_path, capsys, monkeypatch
+):
+    from bicoord_drake.data import readers
+
+    root = tmp_path / "data"
+    root.mkdir()
+    (root / "episode0.hdf5").write_text("not hdf5")
+    h5py.File(root / "episode1.hdf5", "w").close()  # empty: no known layout
+    write_episode(root / "episode2.hdf5", task="lift")
+    real = readers._READERS["bicoord_drake"]
+
+    def broken(f, path):  # a library fault deep in one file, not a ValueError
+        if path.name == "episode2.hdf5":
+            raise KeyError("object 'stages/start' doesn't exist (corrupt B-tree)")
+        return real(f, path)
+
+    monkeypatch.setitem(readers._READERS, "bicoord_drake", broken)
+    assert cli.main([str(root)]) == 1
+    err = capsys.readouterr().err.splitlines()
+    assert err[0] == f"error: {root / 'episode0.hdf5'}: not an HDF5 file"
+    assert err[1].startswith(f"error: {root / 'episode1.hdf5'}: unknown layout")
+    assert err[2].startswith(f"error: {root / 'episode2.hdf5'}: cannot read (KeyError:")
+    assert err[3] == "error: no episode could be measured (3 problem(s), each named above)"

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 from pydrake.all import RigidTransform
 
+import bicoord_drake.planning.skills as sk
 from bicoord_drake.config import StationConfig
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
@@ -12,7 +13,7 @@ from bicoord_drake.models.scene import Scene, cube
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import stack_target
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.skills import ArmPlan, Skills
+from bicoord_drake.planning.skills import ArmPlan
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import build_station
 
@@ -25,14 +26,14 @@ def world():
     )
     return (
         scene,
-        Skills(PlanningModel(scene)),
+        sk.SkillContext(PlanningModel(scene)),
         Simulation(build_station(scene, StationConfig(render=False))),
     )
 
 
 def test_bimanual_pick_then_place_in_physics(world):
-    scene, skills, sim = world
-    pick = skills.merge(skills.pick("left", "a"), skills.pick("right", "b"))
+    scene, ctx, sim = world
+    pick = sk.merge(ctx, sk.pick(ctx, "left", "a"), sk.pick(ctx, "right", "b"))
     both_act = np.mean(
         np.any(np.diff(pick.q[:, :6], axis=0) != 0, axis=1)
         & np.any(np.diff(pick.q[:, 6:], axis=0) != 0, axis=1)
@@ -45,9 +46,10 @@ def test_bimanual_pick_then_place_in_physics(world):
     assert sim.finger_contacts() == {"a": {"left"}, "b": {"right"}}
 
     goals = {"a": (-0.05, -0.15), "b": (0.1, -0.15)}
-    place = skills.merge(
-        skills.place("left", RigidTransform([*goals["a"], 0.77])),
-        skills.place("right", RigidTransform([*goals["b"], 0.77])),
+    place = sk.merge(
+        ctx,
+        sk.place(ctx, "left", RigidTransform([*goals["a"], 0.77])),
+        sk.place(ctx, "right", RigidTransform([*goals["b"], 0.77])),
     )
     for action in place.actions():
         sim.step(action)
@@ -60,15 +62,15 @@ def test_bimanual_pick_then_place_in_physics(world):
     assert sim.finger_contacts() == {"a": set(), "b": set()}
     # every commanded sample respects the joint limits
     q = np.vstack([pick.q, place.q])
-    lower, upper = skills.model.lower, skills.model.upper
+    lower, upper = ctx.model.lower, ctx.model.upper
     assert np.all(q >= lower - 1e-9) and np.all(q <= upper + 1e-9)
 
 
 def test_unreachable_pick_raises_planning_error():
     scene = Scene(name="far", objects=(cube("far", -0.5, 0.33),))
-    skills = Skills(PlanningModel(scene))
+    ctx = sk.SkillContext(PlanningModel(scene))
     with pytest.raises(PlanningError) as info:
-        skills.pick("right", "far")
+        sk.pick(ctx, "right", "far")
     assert info.value.reason == "pick_failed"
 
 
@@ -96,14 +98,16 @@ def _bowl(x: float, y: float, shape: BowlShape = BOWL) -> SceneObject:
 
 
 def test_pour_turns_the_bowl_about_its_rim_and_back():
-    skills = Skills(PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75)
-    skills.pick("left", "bowl", kinds=["rim"], lift=0.12)
-    X0 = skills.model.held_pose("left", skills.q)
-    q0 = skills.q.copy()
+    ctx = sk.SkillContext(
+        PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75
+    )
+    sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=0.12)
+    X0 = ctx.model.held_pose("left", ctx.q)
+    q0 = ctx.q.copy()
     angle = np.radians(60)
-    pour = skills.pour("left", angle, hold_steps=5)
+    pour = sk.pour(ctx, "left", angle, hold_steps=5)
     # the rim point on the pouring side stays put; the tilt reaches the angle; back level
-    poses = [skills.model.held_pose("left", np.r_[q6, q0[6:]]) for q6 in pour.q]
+    poses = [ctx.model.held_pose("left", np.r_[q6, q0[6:]]) for q6 in pour.q]
     tilts = [np.arccos(np.clip(X.rotation().col(2)[2], -1, 1)) for X in poses]
     assert max(tilts) == pytest.approx(angle, abs=1e-3)
     assert np.allclose(pour.q[-1], q0[:6], atol=1e-3)
@@ -116,23 +120,25 @@ def test_pour_turns_the_bowl_about_its_rim_and_back():
         p for p in rims if all(np.linalg.norm(X @ (X0.inverse() @ p) - p) < 1e-3 for X in poses)
     ]
     assert len(fixed) == 1
-    speed = np.abs(np.diff(pour.q, axis=0)) / skills.dt
-    assert np.all(speed <= skills.limits6.velocity + 1e-9)
+    speed = np.abs(np.diff(pour.q, axis=0)) / ctx.dt
+    assert np.all(speed <= ctx.limits6.velocity + 1e-9)
     with pytest.raises(PlanningError) as info:
-        skills.pour("left", np.radians(170))
+        sk.pour(ctx, "left", np.radians(170))
     assert info.value.reason == "pour_failed"
-    assert np.array_equal(skills.q, np.r_[pour.q[-1], q0[6:]])
+    assert np.array_equal(ctx.q, np.r_[pour.q[-1], q0[6:]])
 
 
 def test_pour_about_a_given_pivot_keeps_that_point_still():
-    skills = Skills(PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75)
-    skills.pick("left", "bowl", kinds=["rim"], lift=0.12)
-    X0 = skills.model.held_pose("left", skills.q)
-    q0 = skills.q.copy()
+    ctx = sk.SkillContext(
+        PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75
+    )
+    sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=0.12)
+    X0 = ctx.model.held_pose("left", ctx.q)
+    q0 = ctx.q.copy()
     d = np.array([1.0, 0.0, 0.0])
     pivot = X0.translation() + 0.06 * X0.rotation().col(2) + 0.03 * d  # inside the rim
-    pour = skills.pour("left", np.radians(45), direction=d, pivot=pivot, hold_steps=3)
-    poses = [skills.model.held_pose("left", np.r_[q6, q0[6:]]) for q6 in pour.q]
+    pour = sk.pour(ctx, "left", np.radians(45), direction=d, pivot=pivot, hold_steps=3)
+    poses = [ctx.model.held_pose("left", np.r_[q6, q0[6:]]) for q6 in pour.q]
     p_O = X0.inverse() @ pivot
     assert max(np.linalg.norm(X @ p_O - pivot) for X in poses) < 1e-3
     mouth = [X.rotation().col(2) @ d for X in poses]
@@ -148,22 +154,22 @@ def test_push_slides_a_cube_with_a_held_stick_in_physics():
         pose=Pose(xyz=(0.22, -0.12, 0.765), rpy=(0, 0, np.pi / 2)),
     )
     scene = Scene(name="push", objects=(stick, cube("box", 0.15, 0.05, size=0.04, mass=0.03)))
-    skills = Skills(PlanningModel(scene), speed=0.75)
+    ctx = sk.SkillContext(PlanningModel(scene), speed=0.75)
     sim = Simulation(build_station(scene, StationConfig(render=False)))
-    pick = skills.pick("right", "stick", kinds=["top"], lift=0.08)
+    pick = sk.pick(ctx, "right", "stick", kinds=["top"], lift=0.08)
     start, end = np.array([0.15, 0.0, 0.77]), np.array([0.15, 0.10, 0.77])
-    push = skills.push("right", start, end, ignore=["box"])
+    push = sk.push(ctx, "right", start, end, ignore=["box"])
     # the stick's leading end follows the straight line while pushing
-    held = skills.model.held["right"]
+    held = ctx.model.held["right"]
     tip = np.array([0.08, 0.0, 0.0])
-    q_right = [np.r_[skills.q[:6], q6] for q6 in push.q]
-    tips = np.array([(skills.model.held_pose("right", q) @ tip) for q in q_right])
+    q_right = [np.r_[ctx.q[:6], q6] for q6 in push.q]
+    tips = np.array([(ctx.model.held_pose("right", q) @ tip) for q in q_right])
     on_line = tips[np.abs(tips[:, 2] - 0.77) < 1e-4]
     assert len(on_line) > 5 and np.allclose(on_line[:, [0, 2]], [0.15, 0.77], atol=1e-3)
     assert on_line[:, 1].min() == pytest.approx(0.0, abs=1e-3)
     assert on_line[:, 1].max() == pytest.approx(0.10, abs=1e-3)
     assert held.name == "stick"
-    motion = skills.merge(None, pick.then(push))
+    motion = sk.merge(ctx, None, pick.then(push))
     for action in motion.actions():
         sim.step(action)
     box = sim.object_poses()["box"]
@@ -174,14 +180,14 @@ def test_push_slides_a_cube_with_a_held_stick_in_physics():
 
 def test_stabilize_then_release_keeps_the_planning_world_consistent():
     scene = Scene(name="steady", objects=(_bowl(-0.08, 0.0), cube("cube", 0.15, -0.05)))
-    skills = Skills(PlanningModel(scene), speed=0.75)
-    steady = skills.stabilize("left", "bowl", kinds=["rim"])
-    assert steady.opening[-1] == 0.0 and skills.model.held["left"].name == "bowl"
+    ctx = sk.SkillContext(PlanningModel(scene), speed=0.75)
+    steady = sk.stabilize(ctx, "left", "bowl", kinds=["rim"])
+    assert steady.opening[-1] == 0.0 and ctx.model.held["left"].name == "bowl"
     # the other arm can still plan (the steadied bowl does not count as touching the table)
-    skills.pick("right", "cube", kinds=["top"])
-    let_go = skills.release("left")
-    assert let_go.opening[-1] == 1.0 and "left" not in skills.model.held
-    bowl = skills.model.object_pose("bowl").translation()
+    sk.pick(ctx, "right", "cube", kinds=["top"])
+    let_go = sk.release(ctx, "left")
+    assert let_go.opening[-1] == 1.0 and "left" not in ctx.model.held
+    bowl = ctx.model.object_pose("bowl").translation()
     assert np.allclose(bowl, [-0.08, 0.0, 0.75], atol=1e-6)
 
 
@@ -190,18 +196,18 @@ def test_stabilized_bowl_stays_put_while_the_other_arm_fills_it():
     shape = BowlShape(radius=0.09, base_radius=0.09, height=0.04, wall=0.012)
     bowl = _bowl(-0.08, 0.0, shape)
     scene = Scene(name="fill", objects=(bowl, cube("cube", 0.15, -0.05, size=0.03, mass=0.03)))
-    skills = Skills(PlanningModel(scene), speed=0.75, clearance=0.015)
+    ctx = sk.SkillContext(PlanningModel(scene), speed=0.75, clearance=0.015)
     sim = Simulation(build_station(scene, StationConfig(render=False)))
-    hold = skills.merge(skills.stabilize("left", "bowl", kinds=["rim"]), None)
-    away = 0.03 if skills.model.tcp_pose(skills.q, "left").translation()[0] < -0.08 else -0.03
+    hold = sk.merge(ctx, sk.stabilize(ctx, "left", "bowl", kinds=["rim"]), None)
+    away = 0.03 if ctx.model.tcp_pose(ctx.q, "left").translation()[0] < -0.08 else -0.03
     goal = stack_target(
         RigidTransform(bowl.pose.matrix()), shape, scene.object("cube").shape, offset_xy=(away, 0.0)
     )
-    g = skills.model.embodiment.arm.gripper
-    fill = skills.pick("right", "cube", kinds=["top"]).then(
-        skills.place("right", goal, ignore=["bowl"], opening=float(g.opening(0.025)))
+    g = ctx.model.embodiment.arm.gripper
+    fill = sk.pick(ctx, "right", "cube", kinds=["top"]).then(
+        sk.place(ctx, "right", goal, ignore=["bowl"], opening=float(g.opening(0.025)))
     )
-    work = skills.merge(None, fill, ignore=["bowl"])
+    work = sk.merge(ctx, None, fill, ignore=["bowl"])
     for action in hold.actions():
         sim.step(action)
     before = sim.object_poses()["bowl"][:3]

@@ -1,4 +1,4 @@
-"""Dynamic two-arm skills in physics: a toss into a held bowl and a mid-air handover.
+"""Dynamic two-arm ctx in physics: a toss into a held bowl and a mid-air handover.
 
 Each trial samples a scene from its seed (object positions by a few cm, cube size and mass),
 plans with :class:`Skills` and runs every action through ``Simulation.step``: objects move only
@@ -12,13 +12,14 @@ import numpy as np
 import pytest
 from pydrake.all import Quaternion, RigidTransform, RotationMatrix
 
+import bicoord_drake.planning.skills as sk
 from bicoord_drake.config import StationConfig
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BowlShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.skills import Motion, Skills
+from bicoord_drake.planning.skills import Motion
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import build_station
 
@@ -80,23 +81,24 @@ def _crossing_error(path: np.ndarray, predicted: np.ndarray) -> float:
     return float("nan")
 
 
-def ready_to_toss(scene: Scene) -> tuple[Skills, Motion]:
+def ready_to_toss(scene: Scene) -> tuple[sk.SkillContext, Motion]:
     """A planner in which the left arm holds the cube and the right the bowl (lifted by its
     rim), and the motion that got there."""
-    skills = Skills(PlanningModel(scene), speed=SPEED)
-    prep = skills.merge(
-        skills.pick("left", "cube", kinds=["top"]),
-        skills.pick("right", "bowl", kinds=["rim"], lift=0.1),
+    ctx = sk.SkillContext(PlanningModel(scene), speed=SPEED)
+    prep = sk.merge(
+        ctx,
+        sk.pick(ctx, "left", "cube", kinds=["top"]),
+        sk.pick(ctx, "right", "bowl", kinds=["rim"], lift=0.1),
     )
-    return skills, prep
+    return ctx, prep
 
 
 def toss_trial(seed: int) -> dict:
     """Left picks the cube, right lifts the bowl by its rim; left throws the cube into it."""
     scene = toss_scene(seed)
-    skills, prep = ready_to_toss(scene)
+    ctx, prep = ready_to_toss(scene)
     sim = Simulation(build_station(scene, StationConfig(render=False)))
-    toss = skills.toss("left", "right")
+    toss = sk.toss(ctx, "left", "right")
     _run(sim, prep.actions())
     path = []
     for action in toss.actions():
@@ -135,10 +137,10 @@ def test_toss_acceptance_10_seeds():
 def handover_trial(seed: int) -> dict:
     """Left picks the cube and hands it to right in mid-air; right carries it 16 cm away."""
     scene = handover_scene(seed)
-    skills = Skills(PlanningModel(scene), speed=SPEED)
+    ctx = sk.SkillContext(PlanningModel(scene), speed=SPEED)
     sim = Simulation(build_station(scene, StationConfig(render=False)))
-    pick = skills.merge(skills.pick("left", "cube", kinds=["top"]), None)
-    hand = skills.handover("left", "right")
+    pick = sk.merge(ctx, sk.pick(ctx, "left", "cube", kinds=["top"]), None)
+    hand = sk.handover(ctx, "left", "right")
     _run(sim, pick.actions())
     _run(sim, hand.actions()[: hand.info["receive_index"]])
     both = sim.finger_contacts()["cube"]  # the receiver has closed, the giver not yet opened
@@ -146,13 +148,13 @@ def handover_trial(seed: int) -> dict:
     after = sim.finger_contacts()["cube"]
     # The receiver carries it away (a side-grasped 3 cm cube cannot be set on the table: the
     # gripper body would hit it), and the giver goes home.
-    X = skills.model.tcp_pose(skills.q, "right")
+    X = ctx.model.tcp_pose(ctx.q, "right")
     X_goal = RigidTransform(X.rotation(), X.translation() + [0.15, -0.05, -0.05])
-    away = skills.merge(skills.retreat("left"), skills.move_tcp("right", X_goal, label="carry"))
+    away = sk.merge(ctx, sk.retreat(ctx, "left"), sk.move_tcp(ctx, "right", X_goal, label="carry"))
     _run(sim, away.actions())
     _run(sim, np.repeat(away.actions()[-1:], 8, axis=0))
     c = sim.object_poses()["cube"]
-    expected = skills.model.held_pose("right", skills.q).translation()
+    expected = ctx.model.held_pose("right", ctx.q).translation()
     error = float(np.linalg.norm(c[:3] - expected))
     final = sim.finger_contacts()["cube"]
     return {
@@ -167,7 +169,7 @@ def handover_trial(seed: int) -> dict:
 
 
 # --------------------------------------------------------------------------------------------
-# Plans (no physics): what the two skills promise
+# Plans (no physics): what the two ctx promise
 # --------------------------------------------------------------------------------------------
 
 
@@ -179,11 +181,11 @@ def _moving_until(q: np.ndarray) -> int:
 
 def test_handover_plan_meets_the_contract():
     scene = handover_scene(0)
-    skills = Skills(PlanningModel(scene), speed=SPEED)
-    skills.pick("left", "cube", kinds=["top"])
-    X_giver = skills.model.tcp_pose(skills.q, "left")
-    hand = skills.handover("left", "right")
-    info, g = hand.info, skills.model.embodiment.arm.gripper
+    ctx = sk.SkillContext(PlanningModel(scene), speed=SPEED)
+    sk.pick(ctx, "left", "cube", kinds=["top"])
+    X_giver = ctx.model.tcp_pose(ctx.q, "left")
+    hand = sk.handover(ctx, "left", "right")
+    info, g = hand.info, ctx.model.embodiment.arm.gripper
     meet = info["meet_index"]
     # rendezvous: both arms come to rest at the meeting on the same control step
     assert info["rendezvous"]
@@ -199,22 +201,22 @@ def test_handover_plan_meets_the_contract():
     assert abs(R_g[:, 1] @ R_r[:, 1]) < 0.3 and R_g[:, 0] @ R_r[:, 0] < 0.5
     # the grippers keep ~5 mm apart at the meeting (giver's fingers closed on the cube)
     half = scene.object("cube").shape.size[0] / 2
-    skills.model.set_gripper("left", float(g.opening(half)))
-    skills.model.set_padding(0.004, 0.0)
-    with skills.model.ignoring(["cube"]):
-        assert skills.model.collision_free(hand.q[meet])
-    skills.model.set_gripper("left", skills.model.embodiment.home_opening)
+    ctx.model.set_gripper("left", float(g.opening(half)))
+    ctx.model.set_padding(0.004, 0.0)
+    with ctx.model.ignoring(["cube"]):
+        assert ctx.model.collision_free(hand.q[meet])
+    ctx.model.set_gripper("left", ctx.model.embodiment.home_opening)
     # the object ends held by the receiver only; events in order
-    assert skills.model.held["right"].name == "cube" and "left" not in skills.model.held
+    assert ctx.model.held["right"].name == "cube" and "left" not in ctx.model.held
     kinds = [(side, kind) for _, side, kind, _ in hand.events]
     assert kinds.index(("right", "attach")) < kinds.index(("left", "detach"))
 
 
 def test_toss_plan_meets_the_contract():
-    skills, _ = ready_to_toss(toss_scene(0))
-    held = skills.model.held["left"]
-    toss = skills.toss("left", "right")
-    info, dt = toss.info, skills.dt
+    ctx, _ = ready_to_toss(toss_scene(0))
+    held = ctx.model.held["left"]
+    toss = sk.toss(ctx, "left", "right")
+    info, dt = toss.info, ctx.dt
     r = info["release_index"]
     # the release lies inside a constant-velocity coast around the release sample
     step = np.diff(toss.q[r - 1 : r + 3, :6], axis=0)
@@ -225,7 +227,7 @@ def test_toss_plan_meets_the_contract():
     X_GO = held.X_GO
 
     def centre(q):
-        return (skills.model.gripper_pose(q, "left") @ X_GO).translation()
+        return (ctx.model.gripper_pose(q, "left") @ X_GO).translation()
 
     eps = 1e-4
     dq = np.zeros(12)
@@ -239,66 +241,66 @@ def test_toss_plan_meets_the_contract():
     arrival = info["catch_arrival_index"]
     assert arrival * dt <= info["rim_time"] - 0.3 + 1e-9
     assert _moving_until(toss.q[:, 6:]) <= arrival
-    bowl = skills.model.held_pose("right", toss.q[arrival]).translation()
+    bowl = ctx.model.held_pose("right", toss.q[arrival]).translation()
     assert np.linalg.norm(bowl[:2] - info["landing_point"][:2]) < 1e-3
-    assert skills.model.held.get("left") is None
+    assert ctx.model.held.get("left") is None
 
 
 def test_toss_levels_a_sagging_bowl_and_lands_at_the_aim():
-    skills, _ = ready_to_toss(toss_scene(0))
+    ctx, _ = ready_to_toss(toss_scene(0))
     # The bowl sags 6 degrees in the rim grasp (as measured in physics after a lift).
-    X_WB = skills.model.held_pose("right", skills.q)
+    X_WB = ctx.model.held_pose("right", ctx.q)
     tilt = RotationMatrix.MakeXRotation(np.radians(6)) @ RotationMatrix.MakeYRotation(0.05)
-    skills.refresh_grasps({"bowl": RigidTransform(tilt @ X_WB.rotation(), X_WB.translation())})
-    q = skills.q.copy()
+    ctx.refresh_grasps({"bowl": RigidTransform(tilt @ X_WB.rotation(), X_WB.translation())})
+    q = ctx.q.copy()
     with pytest.raises(PlanningError) as err:  # this aim puts the cube on the rim
-        skills.toss("left", "right", aim=(BOWL.radius, 0.0))
-    assert err.value.reason == "catch_too_steep" and np.array_equal(skills.q, q)
+        sk.toss(ctx, "left", "right", aim=(BOWL.radius, 0.0))
+    assert err.value.reason == "catch_too_steep" and np.array_equal(ctx.q, q)
     aim = np.array([0.01, -0.015])
-    toss = skills.toss("left", "right", aim=aim)
+    toss = sk.toss(ctx, "left", "right", aim=aim)
     info = toss.info
     arrival = info["catch_arrival_index"]
-    X_caught = skills.model.held_pose("right", toss.q[arrival])
+    X_caught = ctx.model.held_pose("right", toss.q[arrival])
     assert X_caught.rotation().col(2)[2] > np.cos(np.radians(0.5))  # level again
     assert np.allclose(X_caught.translation()[:2], info["landing_point"][:2] - aim, atol=1e-3)
 
 
 def test_least_spin_release_velocity():
-    from bicoord_drake.planning.skills import _least_spin_velocity
+    from bicoord_drake.planning.skills import least_spin_velocity
 
     rng = np.random.default_rng(3)
     J = rng.normal(size=(6, 6))
     v = np.array([0.8, 0.0, 0.8])
     equations = [0, 2, 3, 4, 5]
-    loose = _least_spin_velocity(J, v, np.full(6, 100.0))
+    loose = least_spin_velocity(J, v, np.full(6, 100.0))
     assert np.allclose(J[equations] @ loose, np.r_[0.0, 0.0, v], atol=1e-9)
     assert abs(J[1] @ loose) < 1e-9  # no joint cap in the way: no spin at all
-    plain = _least_spin_velocity(J, v, np.full(6, 100.0), least_spin=False)
+    plain = least_spin_velocity(J, v, np.full(6, 100.0), least_spin=False)
     assert np.allclose(J[equations] @ plain, np.r_[0.0, 0.0, v], atol=1e-9)
     cap = np.abs(plain) + 0.2 * np.abs(loose - plain).max()  # some room, not all
-    tight = _least_spin_velocity(J, v, cap)
+    tight = least_spin_velocity(J, v, cap)
     assert np.all(np.abs(tight) <= cap + 1e-9)
     assert np.allclose(J[equations] @ tight, np.r_[0.0, 0.0, v], atol=1e-9)
     assert abs(J[1] @ plain) > abs(J[1] @ tight) > 1e-6
     with pytest.raises(PlanningError) as err:
-        _least_spin_velocity(J, v, 0.1 * np.abs(plain))
+        least_spin_velocity(J, v, 0.1 * np.abs(plain))
     assert err.value.reason == "throw_too_fast"
 
 
 def test_dynamic_skills_refuse_what_they_cannot_do():
-    skills = Skills(PlanningModel(toss_scene(0)))
+    ctx = sk.SkillContext(PlanningModel(toss_scene(0)))
     with pytest.raises(PlanningError) as info:
-        skills.handover("left", "right")
+        sk.handover(ctx, "left", "right")
     assert info.value.reason == "gripper_empty"
-    skills.pick("left", "cube", kinds=["top"])
-    q = skills.q.copy()
+    sk.pick(ctx, "left", "cube", kinds=["top"])
+    q = ctx.q.copy()
     with pytest.raises(PlanningError) as info:
-        skills.toss("left", "right")  # the right holds no bowl
+        sk.toss(ctx, "left", "right")  # the right holds no bowl
     assert info.value.reason == "no_container"
     with pytest.raises(PlanningError) as info:
-        skills.handover("left", "right", meet=(0.0, 0.6, 0.95))  # out of reach
+        sk.handover(ctx, "left", "right", meet=(0.0, 0.6, 0.95))  # out of reach
     assert info.value.reason == "handover_failed"
-    assert np.array_equal(skills.q, q) and skills.model.held["left"].name == "cube"
+    assert np.array_equal(ctx.q, q) and ctx.model.held["left"].name == "cube"
 
 
 # --------------------------------------------------------------------------------------------

@@ -7,22 +7,24 @@ import pytest
 
 from bicoord_drake.models.embodiment import get_embodiment
 from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.throwing import (
+    ballistic_landing,
+    release_joint_velocity,
+    schedule_catch,
+    throw_and_catch,
+    throw_release,
+)
 from bicoord_drake.planning.timing import (
     ARM_SLICES,
     CONTROL_DT,
     JointLimits,
     TimedTrajectory,
-    ballistic_landing,
     concatenate,
     gripper_schedule,
     opening_rate,
-    release_joint_velocity,
     rendezvous,
-    schedule_catch,
     stack_arms,
     synchronize,
-    throw_and_catch,
-    throw_release,
     time_path,
 )
 

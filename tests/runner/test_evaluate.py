@@ -130,6 +130,53 @@ def test_seeds_the_expert_fails_are_skipped_counted_and_cached(tmp_path, monkeyp
     assert calls == [100000, 100001, 100002] * 2
 
 
+def test_seeds_outside_32_bits_are_refused(tmp_path):
+    from pydantic import ValidationError
+
+    with pytest.raises(ValidationError, match="use a seed <= 42948"):
+        config(tmp_path, seed=2**70)
+    config(tmp_path, seed=42948)  # 4294900000 + tries: still below 2**32
+    with pytest.raises(ValueError, match=r"\[0, 2\*\*32\)"):
+        make_env("jigsaw", 2**70, render=False)
+
+
+def test_the_expert_policy_counts_the_seeds_its_expert_fails(tmp_path, monkeypatch):
+    from bicoord_drake.runner import generate
+
+    def must_not_check(*args, **kwargs):
+        raise AssertionError("the expert policy must not be checked (and skipped) first")
+
+    monkeypatch.setattr(generate, "run_expert", must_not_check)
+    # Two steps are too few for the expert: both seeds fail, and count.
+    report = evaluate(config(tmp_path, policy="expert", expert_check=True, step_limit=2))
+    assert report.n == 2 and report.skipped == [] and report.sr == 0.0
+    assert [f["seed"] for f in report.expert_failures] == [100000, 100001]
+    assert all("stage_not_verified" in f["reason"] for f in report.expert_failures)
+    text = report.format_text()
+    assert "2 of 2 seeds the expert failed count as failures" in text
+    assert json.loads(report.report_path.read_text())["expert_failures"] == report.expert_failures
+
+
+def test_ssr_is_the_mean_of_the_rollouts_scores_partial_credit_included(tmp_path):
+    from bicoord_drake.metrics import stage_score
+    from bicoord_drake.runner.evaluate import RolloutResult, _report
+    from bicoord_drake.tasks import get_task
+
+    task = get_task("cook")
+    stages = task.stages(task.sample_scene(0))
+    # one roll of two tossed in (0.5 * 0.5), one roll served (0.5 * 0.5) / nothing
+    credits = [[1.0, 0.5, 1.0, 0.5], [1.0, 0.5, 0.0, 0.0]]
+    scores = [s.score for s in stages]
+    rollouts = [
+        RolloutResult(100000 + i, False, stage_score(scores, c), 10, [x >= 1 for x in c], c)
+        for i, c in enumerate(credits)
+    ]
+    cfg = EvaluateConfig(task="cook", policy="noop", render=False, out=str(tmp_path))
+    report = _report(task, cfg, rollouts, [], None)
+    assert report.ssr == pytest.approx(np.mean([r.score for r in rollouts]))
+    assert report.ssr == pytest.approx((0.5 + 0.25) / 2)
+
+
 def test_replay_and_stage_rollouts_on_demonstrations(tmp_path, demo_dir):
     report = evaluate(config(tmp_path, policy="replay", data=str(demo_dir), step_limit=10))
     (r,) = report.rollouts
@@ -155,6 +202,8 @@ def test_rollout_video(tmp_path):
         (["--task", "jigsaw", "--policy", "noop", "--episodes", "0"], ["--episodes"]),
         (["--task", "jigsaw", "--policy", "noop", "--stage", "1"], ["--data"]),
         (["--task", "jigsaw", "--policy", "noop", "--data", "/nonexistent"], ["/nonexistent"]),
+        (["--task", "jigsaw", "--policy", "noop", "--seed", str(2**70)], ["seed", "42948"]),
+        (["--task", "jigsaw", "--policy", "noop", "--seed", "42949"], ["seed", "42948"]),
     ],
 )
 def test_cli_usage_errors_are_one_line_exit_2(args, words, capsys):

@@ -1,5 +1,6 @@
 """scripts/generate.py: bad input gives one line and no traceback; one real episode end to end."""
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -12,7 +13,10 @@ SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "generate.py"
 
 
 def run(*args):
-    return subprocess.run([sys.executable, str(SCRIPT), *args], capture_output=True, text=True)
+    env = dict(os.environ, PYTHONPATH=str(SCRIPT.parents[1]))  # this checkout's package
+    return subprocess.run(
+        [sys.executable, str(SCRIPT), *args], capture_output=True, text=True, env=env
+    )
 
 
 def test_unknown_task_lists_the_tasks_and_exits_2():
@@ -21,11 +25,15 @@ def test_unknown_task_lists_the_tasks_and_exits_2():
     assert "jigsaw" in result.stderr and "Traceback" not in result.stderr
 
 
-@pytest.mark.parametrize("args,word", [
-    (("--episodes", "0"), "episodes"),
-    (("--seed", "-3"), "seed"),
-    (("--resolution", "320by240"), "resolution"),
-])
+@pytest.mark.parametrize(
+    "args,word",
+    [
+        (("--episodes", "0"), "episodes"),
+        (("--seed", "-3"), "seed"),
+        (("--seed", str(2**70)), "[0, 2**32)"),
+        (("--resolution", "320by240"), "resolution"),
+    ],
+)
 def test_bad_settings_are_one_line_errors(args, word):
     result = run("--task", "jigsaw", *args)
     assert result.returncode == 2
@@ -42,8 +50,9 @@ def test_unwritable_out_is_a_one_line_error(tmp_path):
 
 
 def test_one_jigsaw_episode_end_to_end(tmp_path):
-    result = run("--task", "jigsaw", "--episodes", "1", "--out", str(tmp_path),
-                 "--resolution", "64x48")
+    result = run(
+        "--task", "jigsaw", "--episodes", "1", "--out", str(tmp_path), "--resolution", "64x48"
+    )
     assert result.returncode == 0, result.stderr[-2000:]
     root = tmp_path / "jigsaw" / "default"
     with h5py.File(root / "data" / "episode0.hdf5") as f:
@@ -57,6 +66,7 @@ def test_one_jigsaw_episode_end_to_end(tmp_path):
     assert (root / "video" / "episode0.mp4").stat().st_size > 0
     assert "kept 1 / tried" in result.stdout and "SMP" in result.stdout
     # running again resumes: nothing left to do, nothing rewritten
-    again = run("--task", "jigsaw", "--episodes", "1", "--out", str(tmp_path),
-                "--resolution", "64x48")
+    again = run(
+        "--task", "jigsaw", "--episodes", "1", "--out", str(tmp_path), "--resolution", "64x48"
+    )
     assert again.returncode == 0 and "kept 1 / tried 1" in again.stdout

@@ -78,9 +78,10 @@ def test_given_stages_count_without_being_evaluated():
     FLAGS.clear()
     monitor = StageMonitor(stages, given=1)
     monitor.update(flags())
-    assert monitor.completed() == [True, False] and monitor.score() == pytest.approx(0.4)
+    assert monitor.completed() == [True, False] and monitor.score() == 0.0  # given: unpaid
     monitor.update(flags(b=True))
     assert monitor.completed() == [True, True] and monitor.success
+    assert monitor.score() == pytest.approx(0.6)
     with pytest.raises(ValueError, match="given"):
         StageMonitor(stages, given=3)
 
@@ -146,11 +147,63 @@ def test_annotation_stage_completing_with_its_predecessor_gets_one_frame():
 
 def test_annotations_fail_on_incomplete_demo():
     m = run(two_stages(), [{}, {}])
-    with pytest.raises(ValueError, match="never completed"):
+    with pytest.raises(ValueError, match="did not count"):
         m.annotations()
     m = run(two_stages(), [{}, {"a": True}])
-    with pytest.raises(ValueError, match="would span"):
+    with pytest.raises(ValueError, match="did not count"):
         m.annotations()  # nothing left for the last stage
+    m = run(two_stages(), [{"a": True}, {"b": True}])
+    with pytest.raises(ValueError, match="would span"):
+        m.annotations(T=1)
+
+
+def test_same_events_in_the_wrong_order_give_the_dependent_stage_nothing():
+    three = [
+        Stage("pick", "", "", 0.2, pred("a"), "transient"),
+        Stage("handover", "", "", 0.3, pred("b"), "transient"),
+        Stage("place", "", "", 0.5, pred("c"), "persistent"),
+    ]
+    right = run(three, [{"a": True}, {"b": True}, {"c": True}])
+    assert right.completed() == [True, True, True] and right.success
+    wrong = run(three, [{"b": True}, {"a": True}, {"c": True}])
+    assert wrong.credit()[1] == 0.0 and wrong.completed() == [True, False, False]
+    assert wrong.score() == pytest.approx(0.2) and not wrong.success
+    # at the same update as its dependency is not after it either
+    same = run(three, [{"a": True, "b": True}, {"c": True}])
+    assert same.completed() == [True, False, False]
+
+
+def test_partial_credit_latches_only_after_the_dependency():
+    stages = [
+        Stage("pick", "", "", 0.0, pred("a"), "transient"),
+        Stage("throw", "", "", 1.0, lambda s: FLAGS[s.step].get("f", 0.0), "transient"),
+    ]
+    m = run(stages, [{"f": 0.5}, {"a": True}, {"f": 0.0}])
+    assert m.credit() == [1.0, 0.0]
+    m = run(stages, [{"a": True}, {"f": 0.5}, {"f": 0.0}])
+    assert m.credit() == [1.0, 0.5] and m.score() == pytest.approx(0.5)
+
+
+@pytest.mark.parametrize(
+    "seq",
+    [
+        [{"a": True}, {"b": True}],
+        [{"a": True, "b": True}],
+        [{"b": True}, {"a": True}, {"b": True}],
+        [{"a": True}, {}, {"b": True}, {"b": True}],
+        [{"b": True}, {"a": True}],
+        [{"a": True}],
+    ],
+)
+@pytest.mark.parametrize("kinds", [("transient", "persistent"), ("transient", "transient")])
+def test_success_and_annotations_never_disagree(seq, kinds):
+    m = run(two_stages(*kinds), seq)
+    if m.success:
+        rows = m.annotations()
+        check_rows(rows, m.frames)
+    else:
+        with pytest.raises(ValueError):
+            m.annotations()
 
 
 def test_stage_index_from_rows_and_row_checks():

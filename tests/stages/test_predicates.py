@@ -7,6 +7,7 @@ import pytest
 
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.stages import predicates as P
+from bicoord_drake.stages.stage import quat_to_matrix
 from tests.stages.helpers import pose, quat_about, scene, state
 
 # small cube: 4 cm at (-0.1, 0); large cube: 6 cm at (0.1, 0); bowl at (0.2, -0.1); roller along x
@@ -49,12 +50,17 @@ def test_inside_container_follows_its_tilt():
     assert P.inside("small", "bowl")(in_bowl)
     assert not P.inside("small", "bowl")(state())
     assert not P.inside("small", "bowl")(state(poses={"small": pose(0.2, -0.1, TABLE_TOP + 0.2)}))
-    # bowl tipped on its side (opening towards -y): judged in the bowl's frame
+    # bowl tilted 25 deg about x, cube on its floor: judged in the bowl's frame
+    q = quat_about("x", math.radians(25))
+    R = quat_to_matrix(q)
+    bowl = np.array([0.2, -0.1, TABLE_TOP + 0.1])
+    floor = bowl + R @ [0, 0, 0.006 + 0.021]
+    tilted = state(poses={"bowl": pose(*bowl, q), "small": pose(*floor, q)})
+    assert P.inside("small", "bowl")(tilted)
+    # the same contents with the bowl tipped on its side hold nothing
     tipped = pose(0.2, -0.1, 0.9, quat_about("x", math.pi / 2))
     into = state(poses={"bowl": tipped, "small": tipped + [0, -0.025, 0, 0, 0, 0, 0]})
-    behind = state(poses={"bowl": tipped, "small": tipped + [0, 0.03, 0, 0, 0, 0, 0]})
-    assert P.inside("small", "bowl")(into)
-    assert not P.inside("small", "bowl")(behind)
+    assert not P.inside("small", "bowl")(into)
 
 
 def test_released_needs_open_grippers_and_no_contact():

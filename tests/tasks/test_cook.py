@@ -1,5 +1,7 @@
 """cook: seeded scenes, stage definitions, the shake predicate, and (slow) the expert in physics."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -84,7 +86,10 @@ def test_rolls_in_the_lifted_skillet_and_the_shake_are_recognized(cook, task):
     path = [0, a, -a, a, -a, 0]
     results = [shaken(at(x, k)) for k, x in enumerate(path)]
     assert results[:4] == [False] * 4 and results[-1]  # three full swings: done
-    # A new rollout (the step count starts over) starts the count afresh.
+    # A new rollout starts the count afresh after the monitor's reset, and only then.
+    with pytest.raises(ValueError, match="reset"):
+        shaken(at(0.0, 0))
+    shaken.reset()
     assert not shaken(at(0.0, 0))
     # One roll on the table: not in the pan, no shake counted.
     half = _moved(scene, at(0.0, 0), roll_1=[0.3, 0.0, 0.77])
@@ -100,7 +105,23 @@ def test_rolls_on_the_plate_are_served(task):
         roll_0=plate + [0.03, 0, 0.026],
         roll_1=plate + [-0.03, 0, 0.026],
     )
-    assert task.stages(scene)[3].predicate(state) == 1.0
+    serve = task.stages(scene)[3].predicate
+    at = [replace(state, time=k / 15, step=k) for k in range(6)]
+    assert [serve(s) for s in at] == [0.0] * 5 + [1.0]  # at rest for 0.3 s
+
+
+def test_rolls_on_the_table_beside_the_skillet_are_not_in_it(task):
+    scene = task.sample_scene(0)
+    pan = np.array(scene.object("skillet").pose.xyz)
+    # 12.7 cm from the pan's axis, inside the corner of its 20 cm bounding square
+    corner = [0.09, 0.09, 0.02]
+    state = _moved(
+        scene,
+        WorldState.initial(scene),
+        roll_0=pan + corner,
+        roll_1=pan + np.array(corner) * [-1, 1, 1],
+    )
+    assert task.stages(scene)[1].predicate(state) == 0.0
 
 
 # -------------------------------------------------------------------- physics (slow)

@@ -1,5 +1,8 @@
 """exchange_mics: seeded scenes, stage definitions, and (slow) the expert in physics."""
 
+import functools
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -8,7 +11,7 @@ from bicoord_drake.config import StationConfig
 from bicoord_drake.models.objects import CompoundShape
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
-from bicoord_drake.stages.predicates import upright
+from bicoord_drake.stages.predicates import reset_predicate, upright
 from bicoord_drake.tasks import get_task
 from bicoord_drake.tasks.base import check_task_class
 from bicoord_drake.tasks.exchange_mics import SQUARE_X, SQUARE_Y, ExchangeMics
@@ -62,9 +65,28 @@ def test_no_stage_holds_in_the_initial_state(task):
     assert upright("mic_left")(state) and upright("mic_right")(state)
 
 
+def _held(pred, state, seconds=0.34):
+    """`pred` after `state` was seen, unchanged, for `seconds` at 15 Hz (from a reset)."""
+    reset_predicate(pred)
+    values = [pred(replace(state, time=k / 15, step=k)) for k in range(round(seconds * 15) + 1)]
+    return values[-1]
+
+
+def test_crosswise_placement_needs_the_mics_at_rest_for_0_3_s(task):
+    scene = task.sample_scene(4)
+    place = task.stages(scene)[4].predicate
+    poses = {o.name: np.array([*o.pose.xyz, 1.0, 0.0, 0.0, 0.0]) for o in scene.objects}
+    poses["mic_right"] = np.array([*scene.draws["square_left"], poses["mic_left"][2], 1, 0, 0, 0])
+    poses["mic_left"] = np.array([*scene.draws["square_right"], poses["mic_right"][2], 1, 0, 0, 0])
+    state = WorldState.initial(scene, object_poses=poses)
+    assert _held(place, state, 0.2) == 0.0
+    assert _held(place, state, 0.34) == 1.0
+
+
 def test_crosswise_placement_scores_half_per_mic(task):
     scene = task.sample_scene(4)
     stages = task.stages(scene)
+    stages = [replace(s, predicate=functools.partial(_held, s.predicate)) for s in stages]
     poses = {o.name: np.array([*o.pose.xyz, 1.0, 0.0, 0.0, 0.0]) for o in scene.objects}
     swapped = dict(poses)
     swapped["mic_right"] = np.array([*scene.draws["square_left"], poses["mic_left"][2], 1, 0, 0, 0])

@@ -1,5 +1,7 @@
 """handover_block_with_bowls: seeded scenes, stage definitions, and (slow) the expert in physics."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -8,7 +10,7 @@ from bicoord_drake.config import StationConfig
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
-from bicoord_drake.stages.predicates import inside, lifted, released
+from bicoord_drake.stages.predicates import inside, lifted, released, reset_predicate
 from bicoord_drake.tasks.base import check_task_class
 from bicoord_drake.tasks.registry import get_task
 
@@ -50,7 +52,7 @@ def test_draws_stay_in_the_reference_ranges(task, seed):
 def test_initial_state_cube_in_the_left_bowl_and_no_stage_done(task):
     scene = task.sample_scene(3)
     state = WorldState.initial(scene)
-    assert inside("cube", "pour_bowl")(state)
+    assert inside("cube", "pour_bowl", cavity=hbb.POUR_CAVITY)(state)
     assert not inside("cube", "catch_bowl")(state)
     assert not lifted("pour_bowl", 0.05)(state)
     assert released("catch_bowl")(state)
@@ -58,6 +60,43 @@ def test_initial_state_cube_in_the_left_bowl_and_no_stage_done(task):
     assert [s.kind for s in stages] == ["transient", "persistent", "persistent"]
     assert sum(s.score for s in stages) == pytest.approx(1.0)
     assert list(StageMonitor(stages).evaluate(state)) == [0, 0, 0]
+
+
+def _moved(state, **xyz):
+    poses = dict(state.object_poses)
+    for name, p in xyz.items():
+        poses[name] = np.r_[p, poses[name][3:]]
+    return replace(state, object_poses=poses)
+
+
+def test_a_cube_on_the_table_beside_the_catching_bowl_is_not_poured(task):
+    scene = task.sample_scene(3)
+    state = WorldState.initial(scene)
+    axis = np.array(scene.object("catch_bowl").pose.xyz)
+    # 9 cm from the 7.5 cm bowl's axis, inside its bounding square's corner, on the table
+    beside = _moved(state, cube=axis + [0.064, 0.064, hbb.CUBE / 2])
+    assert not task.stages(scene)[1].predicate(beside)
+    inside_it = _moved(state, cube=axis + [0.02, 0.0, 0.012 + hbb.CUBE / 2])
+    assert task.stages(scene)[1].predicate(inside_it)
+
+
+def test_the_bowl_must_rest_on_the_target_released_and_settled(task):
+    scene = task.sample_scene(3)
+    target = np.array([*scene.draws["target_xy"], TABLE_TOP])
+    state = _moved(
+        WorldState.initial(scene), catch_bowl=target, cube=target + [0, 0, 0.012 + hbb.CUBE / 2]
+    )
+    place = task.stages(scene)[2].predicate
+
+    def after(s, frames):
+        reset_predicate(place)
+        return [place(replace(s, time=k / 15, step=k)) for k in range(frames)][-1]
+
+    assert after(state, 6) and not after(state, 4)  # at rest for 0.3 s
+    hovering = _moved(state, catch_bowl=target + [0, 0, 0.03], cube=target + [0, 0, 0.052])
+    assert not after(hovering, 6)  # held (still) above the target, not on the table
+    touched = replace(state, contacts={"pour_bowl": frozenset({"left"})})
+    assert not after(touched, 6)  # a finger still on the other bowl
 
 
 def test_pour_bowl_has_a_low_spout_facing_its_x_axis():

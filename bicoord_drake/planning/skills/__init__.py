@@ -1,0 +1,81 @@
+"""Skills: the vocabulary task experts are written in.
+
+A skill plans one arm's part of a stage as an :class:`ArmPlan` - joint samples on the control
+grid, a gripper-opening schedule and attach/detach events - from IK keyframes, collision-checked
+joint paths and ruckig timing. Every skill is a function whose first argument is the shared
+:class:`SkillContext` (the planning model, the arms' joint angles and openings, limits and
+clearances), which it advances. :func:`merge` runs two arm plans at the same time and checks the
+combined two-arm motion against collisions sample by sample; if the arms would meet it delays
+one of them until they do not, so both arms act together whenever that is safe. The result, a
+:class:`Motion`, turns into the 14-dim actions the station takes.
+
+========================  ===================================================================
+module                    skills
+========================  ===================================================================
+:mod:`.core`              :class:`ArmPlan`, :class:`Motion`, :class:`SkillContext` (``sync``,
+                          ``refresh_grasps``, ``transaction``), :func:`merge`, :func:`hold`
+:mod:`.arm`               :func:`move`, :func:`move_tcp`, :func:`solve_tcp`, :func:`grip`,
+                          :func:`lift`, :func:`retreat`
+:mod:`.pick_place`        :func:`pick`, :func:`place`, :func:`stabilize`, :func:`release`
+:mod:`.tracking`          :func:`track` (a TCP path at every sample), :func:`push`
+:mod:`.pour`              :func:`pour` (tilt a held container about its rim and back)
+:mod:`.handover`          :func:`handover` (mid-air, both arms arrive at once; options for the
+                          orientations at the meeting and the receiver's grasps),
+                          :func:`crossing_grasps`, :func:`meet_motion`
+:mod:`.toss`              :func:`toss` (a throw released on the control grid into a container
+                          the other arm holds under the predicted landing point)
+========================  ===================================================================
+
+Every planning failure raises :class:`~bicoord_drake.planning.errors.PlanningError` with a
+reason; the two-arm skills (handover, toss) leave the context unchanged when they fail.
+
+>>> ctx = SkillContext(PlanningModel(scene))                            # doctest: +SKIP
+>>> left = pick(ctx, "left", "cube_a")
+>>> right = pick(ctx, "right", "cube_b")
+>>> motion = merge(ctx, left, right)     # both arms pick at once
+>>> for action in motion.actions(): sim.step(action)
+"""
+
+from bicoord_drake.planning.skills.arm import grip, lift, move, move_tcp, retreat, solve_tcp
+from bicoord_drake.planning.skills.core import ArmPlan, Motion, SkillContext, hold, merge
+from bicoord_drake.planning.skills.handover import (
+    ReceiverGrasps,
+    crossing_grasps,
+    fingers_cross,
+    handover,
+    meet_motion,
+)
+from bicoord_drake.planning.skills.pick_place import pick, place, release, stabilize
+from bicoord_drake.planning.skills.pour import pour
+from bicoord_drake.planning.skills.shapes import half_extent
+from bicoord_drake.planning.skills.toss import least_spin_velocity, toss
+from bicoord_drake.planning.skills.tracking import push, track
+
+__all__ = [
+    "ArmPlan",
+    "Motion",
+    "ReceiverGrasps",
+    "SkillContext",
+    "crossing_grasps",
+    "fingers_cross",
+    "grip",
+    "half_extent",
+    "handover",
+    "hold",
+    "least_spin_velocity",
+    "lift",
+    "meet_motion",
+    "merge",
+    "move",
+    "move_tcp",
+    "pick",
+    "place",
+    "pour",
+    "push",
+    "release",
+    "retreat",
+    "solve_tcp",
+    "stabilize",
+    "toss",
+    "track",
+]

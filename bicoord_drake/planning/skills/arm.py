@@ -1,0 +1,123 @@
+"""Arm primitives: joint and TCP moves, gripper opening and closing, lifting and retreating.
+
+Each plans one arm (the other stays where it is), advances the context and returns an
+:class:`~bicoord_drake.planning.skills.core.ArmPlan`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+
+import numpy as np
+from pydrake.all import RigidTransform
+
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.ik import TcpTarget
+from bicoord_drake.planning.skills.core import ArmPlan, SkillContext
+from bicoord_drake.planning.timing import ARM_SLICES, time_path
+
+
+def move(
+    ctx: SkillContext,
+    side: str,
+    q6_goal: np.ndarray,
+    *,
+    label: str = "move",
+    ignore: Iterable[str] = (),
+    straight: bool = False,
+    clearance: float | None = None,
+) -> ArmPlan:
+    """A collision-checked, timed joint path of one arm (the other stays where it is).
+
+    A `clearance` (m) between the arms, if given, is checked with no environment margin
+    (close two-arm work such as a handover)."""
+    from bicoord_drake.planning.motion import plan_path
+
+    start = ctx.q.copy()
+    goal = ctx.with_arm(side, np.asarray(q6_goal, float))
+    if clearance is not None:
+        ctx.model.set_padding(clearance * 0.8, 0.0)
+    if straight:
+        with ctx.model.ignoring(ignore):
+            if not ctx.edge_free(start, goal):
+                raise PlanningError(
+                    "path_in_collision", f"{label}: the straight {side} move collides"
+                )
+        waypoints = np.vstack([start, goal])
+    else:
+        kwargs = {} if clearance is None else {"clearance": clearance * 0.8}
+        waypoints = plan_path(
+            ctx.model, start, goal, arms=(side,), ignore=ignore, env_clearance=0.0, **kwargs
+        )
+    traj = time_path(waypoints[:, ARM_SLICES[side]], ctx.limits6, ctx.dt)
+    ctx.q = goal
+    return ArmPlan(side, traj.q, np.full(len(traj.q), ctx.opening[side]), label=label)
+
+
+def grip(
+    ctx: SkillContext, side: str, opening: float, *, settle_steps: int = 3, label: str = "grip"
+) -> ArmPlan:
+    """Open or close one gripper (arm still), then hold for `settle_steps`."""
+    start = ctx.opening[side]
+    n = ctx.gripper_steps + settle_steps
+    ramp = np.clip(np.arange(n + 1) / ctx.gripper_steps, 0, 1)
+    q6 = ctx.arm_q(side)
+    ctx.opening[side] = float(opening)
+    return ArmPlan(
+        side, np.repeat(q6[None], n + 1, 0), start + ramp * (opening - start), label=label
+    )
+
+
+def solve_tcp(
+    ctx: SkillContext,
+    side: str,
+    target: TcpTarget,
+    *,
+    seed6: np.ndarray | None = None,
+    ignore: Iterable[str] = (),
+    env_clearance: float | None = None,
+    clearance: float | None = None,
+) -> np.ndarray:
+    """Six joint angles of `side` reaching `target` with the other arm fixed."""
+    other = "right" if side == "left" else "left"
+    seed = ctx.q.copy() if seed6 is None else ctx.with_arm(side, seed6)
+    q12 = ctx.ik.solve_single(
+        side,
+        target,
+        ctx.arm_q(other),
+        seed=seed,
+        clearance=ctx.clearance if clearance is None else clearance,
+        env_clearance=ctx.env_clearance if env_clearance is None else env_clearance,
+        ignore=ignore,
+    )
+    return q12[ARM_SLICES[side]]
+
+
+def move_tcp(
+    ctx: SkillContext,
+    side: str,
+    X_WT: RigidTransform,
+    *,
+    label: str = "move_tcp",
+    ignore: Iterable[str] = (),
+    straight: bool = False,
+    free_axis: bool = False,
+    clearance: float | None = None,
+) -> ArmPlan:
+    """Move the TCP of `side` to `X_WT` (see :meth:`move`)."""
+    target = TcpTarget(X_WT, free_axis=free_axis)
+    q6 = solve_tcp(ctx, side, target, ignore=ignore, clearance=clearance)
+    return move(ctx, side, q6, label=label, ignore=ignore, straight=straight, clearance=clearance)
+
+
+def lift(ctx: SkillContext, side: str, height: float) -> ArmPlan:
+    """Raise the TCP straight up by `height` (m), keeping its orientation."""
+    X = ctx.model.tcp_pose(ctx.q, side)
+    X_up = RigidTransform(X.rotation(), X.translation() + [0, 0, height])
+    return move_tcp(ctx, side, X_up, label="lift", straight=True)
+
+
+def retreat(ctx: SkillContext, side: str, q6: np.ndarray | None = None) -> ArmPlan:
+    """Back to `q6` (default: home) along a collision-free path."""
+    q6 = ctx.model.home[ARM_SLICES[side]] if q6 is None else q6
+    return move(ctx, side, q6, label="retreat")

@@ -1,0 +1,371 @@
+"""The core of the skills: plans on the control grid and the shared planning context.
+
+:class:`ArmPlan` is one arm's motion (joint samples, a gripper-opening schedule, attach/detach
+events), :class:`Motion` both arms'. :class:`SkillContext` is what every skill plans from and
+advances: the planning model (object poses, what each gripper holds), the arms' joint angles
+and commanded openings, the timing limits and clearances. :meth:`SkillContext.sync` adopts
+measured values, :meth:`SkillContext.transaction` rolls a failed multi-step plan back, and
+:func:`merge` runs two arm plans at the same time, delaying one only if the arms would meet.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from pydrake.all import RigidTransform
+
+from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.ik import BimanualIK
+from bicoord_drake.planning.model import PlanningModel
+from bicoord_drake.planning.timing import ARM_SLICES, CONTROL_DT, JointLimits, TimedTrajectory
+
+#: Sub-samples checked between two control samples of a merged motion.
+MERGE_SUBSTEPS = 4
+
+
+@dataclass
+class ArmPlan:
+    """One arm's motion on the control grid: q (N, 6), opening (N,), events by sample index."""
+
+    side: str
+    q: np.ndarray
+    opening: np.ndarray
+    events: list[tuple[int, str, str]] = field(default_factory=list)  # (index, kind, object)
+    label: str = ""
+
+    @property
+    def num_steps(self) -> int:
+        return len(self.q)
+
+    def then(self, *others: ArmPlan) -> ArmPlan:
+        """This plan followed by `others` (each starts where the previous one ends)."""
+        q, opening, events, n = [self.q], [self.opening], list(self.events), len(self.q)
+        for other in others:
+            if other.side != self.side:
+                raise ValueError("cannot chain plans of different arms")
+            if np.max(np.abs(other.q[0] - q[-1][-1])) > 1e-6:
+                raise ValueError(f"plan {other.label!r} does not start where the previous ends")
+            q.append(other.q[1:])
+            opening.append(other.opening[1:])
+            events += [(i + n - 1, kind, name) for i, kind, name in other.events]
+            n += len(other.q) - 1
+        labels = "+".join(p.label for p in (self, *others) if p.label)
+        return ArmPlan(self.side, np.concatenate(q), np.concatenate(opening), events, labels)
+
+    def stretched(self, num_steps: int) -> ArmPlan:
+        """The same motion slowed uniformly to `num_steps` samples (velocities and
+        accelerations only shrink); events keep their place along the motion."""
+        if num_steps <= self.num_steps:
+            return self
+        t = np.linspace(0.0, self.num_steps - 1, num_steps)
+        old = np.arange(self.num_steps)
+        q = np.column_stack([np.interp(t, old, self.q[:, j]) for j in range(self.q.shape[1])])
+        scale = (num_steps - 1) / (self.num_steps - 1)
+        events = [(int(np.ceil(i * scale)), k, n) for i, k, n in self.events]
+        return ArmPlan(self.side, q, np.interp(t, old, self.opening), events, self.label)
+
+    def padded(self, num_steps: int) -> ArmPlan:
+        """Hold the last sample until the plan has `num_steps` samples."""
+        extra = num_steps - self.num_steps
+        if extra <= 0:
+            return self
+        return ArmPlan(
+            self.side,
+            np.vstack([self.q, np.repeat(self.q[-1:], extra, 0)]),
+            np.concatenate([self.opening, np.repeat(self.opening[-1:], extra)]),
+            list(self.events),
+            self.label,
+        )
+
+    def delayed(self, steps: int) -> ArmPlan:
+        """Hold the first sample for `steps` more samples before starting."""
+        if steps <= 0:
+            return self
+        return ArmPlan(
+            self.side,
+            np.vstack([np.repeat(self.q[:1], steps, 0), self.q]),
+            np.concatenate([np.repeat(self.opening[:1], steps), self.opening]),
+            [(i + steps, k, n) for i, k, n in self.events],
+            self.label,
+        )
+
+
+@dataclass
+class Motion:
+    """A two-arm motion on the control grid: q12 (N, 12), openings (N, 2) [left, right]."""
+
+    q: np.ndarray
+    openings: np.ndarray
+    events: list[tuple[int, str, str, str]] = field(default_factory=list)  # (i, side, kind, obj)
+    label: str = ""
+    info: dict[str, Any] = field(default_factory=dict)  # skill-specific plan data
+
+    @property
+    def num_steps(self) -> int:
+        return len(self.q)
+
+    def then(self, other: Motion) -> Motion:
+        """This motion followed by `other` (which must start where this one ends). Events are
+        re-indexed; ``info`` is merged as is (the later motion's keys win)."""
+        if np.max(np.abs(other.q[0] - self.q[-1])) > 1e-6:
+            raise ValueError(f"motion {other.label!r} does not start where the previous ends")
+        n = self.num_steps - 1
+        events = self.events + [(i + n, side, k, o) for i, side, k, o in other.events]
+        return Motion(
+            np.vstack([self.q, other.q[1:]]),
+            np.vstack([self.openings, other.openings[1:]]),
+            events,
+            f"{self.label}; {other.label}",
+            {**self.info, **other.info},
+        )
+
+    def actions(self) -> np.ndarray:
+        """(N-1, 14) actions: every sample after the start, as the station's action layout."""
+        q, g = self.q[1:], self.openings[1:]
+        return np.column_stack([q[:, :6], g[:, 0], q[:, 6:], g[:, 1]])
+
+
+class SkillContext:
+    """The state skills plan from and advance, for both arms of a :class:`PlanningModel`.
+
+    `speed` scales the embodiment's joint velocity limits (accelerations by speed^2, jerks by
+    speed^3). The tracked state (joint angles ``q``, commanded ``opening`` per side, held
+    objects in ``model``) advances as skills are planned; call :meth:`sync` with measured values
+    before planning from a new situation.
+    """
+
+    def __init__(
+        self,
+        model: PlanningModel,
+        *,
+        speed: float = 0.5,
+        dt: float = CONTROL_DT,
+        clearance: float = 0.03,
+        env_clearance: float = 0.005,
+    ) -> None:
+        self.model = model
+        self.ik = BimanualIK(model)
+        self.dt = dt
+        self.clearance = clearance
+        self.env_clearance = env_clearance
+        self.limits6 = JointLimits.from_embodiment(model.embodiment, arms=1, speed=speed)
+        self.q = model.home.copy()
+        self.opening = {side: model.embodiment.home_opening for side in SIDES}
+        self.speed = speed
+        g = model.embodiment.arm.gripper
+        self.gripper_steps = max(
+            3, int(np.ceil((g.finger_max - g.finger_min) / g.finger_velocity_limit / dt))
+        )
+        self.track_ik = BimanualIK(model)  # its nominal follows the previous sample
+        self.stabilized: dict[str, np.ndarray] = {}  # side -> model lift of what it steadies
+
+    # ------------------------------------------------------------------ state
+    def sync(
+        self,
+        q12: np.ndarray,
+        openings: dict[str, float] | None = None,
+        object_poses: dict[str, RigidTransform] | None = None,
+    ) -> None:
+        """Adopt measured joint angles, commanded openings and free objects' poses."""
+        self.q = np.asarray(q12, dtype=float).copy()
+        if openings:
+            self.opening.update(openings)
+        held = {h.name for h in self.model.held.values()}
+        for name, X in (object_poses or {}).items():
+            if name not in held:
+                self.model.set_object_pose(name, X)
+
+    def refresh_grasps(self, object_poses: dict[str, RigidTransform]) -> None:
+        """Re-measure each held object's pose in its gripper from measured poses (a grasp
+        settles by a few mm when the fingers close), so later placements aim right. Held
+        objects missing from `object_poses` keep their grasp."""
+        for side, held in list(self.model.held.items()):
+            X_WO = object_poses.get(held.name)
+            if X_WO is None:
+                continue
+            self.model.detach(side, X_WO=X_WO)
+            self.model.attach(held.name, side, self.q, X_WO=X_WO)
+
+    def arm_q(self, side: str) -> np.ndarray:
+        """The six joint angles of `side` (a copy)."""
+        return self.q[ARM_SLICES[side]].copy()
+
+    def with_arm(self, side: str, q6: np.ndarray) -> np.ndarray:
+        """Both arms' joint angles with `side`'s replaced by `q6` (the state is not changed)."""
+        q = self.q.copy()
+        q[ARM_SLICES[side]] = q6
+        return q
+
+    @contextmanager
+    def transaction(self) -> Iterator[None]:
+        """On an exception inside the block, put the tracked state (joints, openings, what is
+        held, object poses) back as it was, then re-raise."""
+        q, opening, stabilized = self.q.copy(), dict(self.opening), dict(self.stabilized)
+        held = self.model.held
+        poses = {o.name: self.model.object_pose(o.name) for o in self.model.scene.objects}
+        try:
+            yield
+        except BaseException:
+            for side in SIDES:
+                now = self.model.held.get(side)
+                if now is not None and (side not in held or held[side].name != now.name):
+                    self.model.detach(side, X_WO=poses[now.name])
+            for side, h in held.items():
+                if side not in self.model.held:
+                    X_WO = self.model.gripper_pose(q, side) @ h.X_GO
+                    self.model.attach(h.name, side, q, X_WO)
+            held_names = {h.name for h in held.values()}
+            for name, X in poses.items():
+                if name not in held_names:
+                    self.model.set_object_pose(name, X)
+            for side in SIDES:
+                self.model.set_gripper(side, self.model.embodiment.home_opening)
+            self.q, self.opening, self.stabilized = q, opening, stabilized
+            raise
+
+    # ------------------------------------------------------------------ motions
+    def edge_free(self, a: np.ndarray, b: np.ndarray) -> bool:
+        """Whether the straight joint-space segment a -> b is collision-free (1 cm joint steps,
+        at the model's current padding)."""
+        n = max(2, int(np.ceil(np.max(np.abs(b - a)) / 0.01)) + 1)
+        return all(self.model.collision_free(a + s * (b - a)) for s in np.linspace(0, 1, n))
+
+    def checked(
+        self,
+        motion: Motion,
+        clearance: float,
+        env_clearance: float,
+        *,
+        ignore: Iterable[str] = (),
+        span: tuple[int, int | None] = (0, None),
+    ) -> bool:
+        """Whether the samples span[0]..span[1]-1 of `motion` and the straight steps between
+        them are collision-free (no robot point moves more than 1 cm between checks)."""
+        q = motion.q[span[0] : span[1]]
+        self.model.set_padding(clearance, env_clearance)
+        with self.model.ignoring(ignore):
+            for a, b in zip(q[:-1], q[1:], strict=True):
+                n = max(1, int(np.ceil(self.model.path_distance(a, b) / 0.01)))
+                if not all(
+                    self.model.collision_free(a + s * (b - a)) for s in np.linspace(0, 1, n + 1)
+                ):
+                    return False
+        return True
+
+    def still(self, q12: np.ndarray | None = None, openings: dict | None = None) -> Motion:
+        """A one-sample motion: both arms at `q12` (default: now)."""
+        q12 = self.q if q12 is None else q12
+        o = self.opening if openings is None else openings
+        return Motion(np.array(q12, float)[None], np.array([[o["left"], o["right"]]], float))
+
+    def sequence(self, parts: Sequence[dict[str, ArmPlan]], start: Motion) -> Motion:
+        """`start` followed by each part in turn; in a part, an arm without a plan (or with the
+        shorter plan) holds its last sample until the other arm is done."""
+        motion = start
+        for part in parts:
+            n = max(p.num_steps for p in part.values())
+            plans = {}
+            for k, side in enumerate(SIDES):
+                p = part.get(side)
+                if p is None:
+                    p = ArmPlan(side, motion.q[-1:, ARM_SLICES[side]], motion.openings[-1:, k])
+                plans[side] = p.padded(n)
+            motion = motion.then(combine(plans["left"], plans["right"]))
+        return motion
+
+    def motion_of(self, traj: TimedTrajectory, label: str, opening: float | None = None) -> Motion:
+        """A 12-DoF trajectory as a motion, grippers as they are (or all at `opening`)."""
+        o = [self.opening[s] if opening is None else opening for s in SIDES]
+        return Motion(traj.q.copy(), np.tile(np.array(o, float), (len(traj.q), 1)), label=label)
+
+    def arm_plan(self, side: str, traj: TimedTrajectory, label: str) -> ArmPlan:
+        """A 6-DoF trajectory of `side` as an arm plan, its gripper as it is."""
+        return ArmPlan(side, traj.q.copy(), np.full(len(traj.q), self.opening[side]), label=label)
+
+
+def hold(ctx: SkillContext, side: str, steps: int, label: str = "hold") -> ArmPlan:
+    """Stay still for `steps` control periods."""
+    return ArmPlan(
+        side,
+        np.repeat(ctx.arm_q(side)[None], steps + 1, 0),
+        np.full(steps + 1, ctx.opening[side]),
+        label=label,
+    )
+
+
+def merge(
+    ctx: SkillContext,
+    left: ArmPlan | None,
+    right: ArmPlan | None,
+    *,
+    max_delay: int = 90,
+    stretch: bool = True,
+    ignore: Iterable[str] = (),
+) -> Motion:
+    """Run both plans at once. With `stretch`, the shorter plan is first slowed to last as
+    long as the longer one, so both arms keep acting together; if the arms would then come
+    closer than the checker allows, the plans run at their own pace and the later-starting
+    one is delayed (first the right, then the left) until they do not. Objects in `ignore`
+    (e.g. a container one arm steadies while the other reaches into it) are left out of
+    that check."""
+    plans = {"left": left, "right": right}
+    for side in SIDES:
+        if plans[side] is None:
+            plans[side] = hold(ctx, side, 0)
+    starts = {s: plans[s].q[0] for s in SIDES}
+    n = max(p.num_steps for p in plans.values())
+    moving = {s: bool(np.any(plans[s].q != plans[s].q[0])) for s in SIDES}
+    if stretch and all(moving.values()):
+        motion = combine(plans["left"].stretched(n), plans["right"].stretched(n))
+        if _motion_free(ctx, motion, starts, ignore):
+            return motion
+    attempts = [("right", 0)] + [
+        (s, d) for d in range(3, max_delay + 1, 3) for s in ("right", "left")
+    ]
+    for side, delay in attempts:
+        trial = dict(plans)
+        trial[side] = trial[side].delayed(delay)
+        motion = combine(trial["left"], trial["right"])
+        if _motion_free(ctx, motion, starts, ignore):
+            return motion
+    raise PlanningError(
+        "arm_conflict",
+        f"the arms' plans ({plans['left'].label!r}, "
+        f"{plans['right'].label!r}) collide at every delay up to {max_delay}",
+    )
+
+
+def _motion_free(
+    ctx: SkillContext, motion: Motion, starts: dict, ignore: Iterable[str] = ()
+) -> bool:
+    """Check a merged motion densely (MERGE_SUBSTEPS per control period): the arms against
+    each other and the scene. Objects that change hands within the motion are left out;
+    their clearance to the static scene was checked when each arm's plan was made."""
+    moving = {name for _, _, _, name in motion.events} | set(ignore)
+    with ctx.model.ignoring(moving):
+        for i in range(1, motion.num_steps):
+            a, b = motion.q[i - 1], motion.q[i]
+            if np.array_equal(a, b):
+                continue
+            for s in np.linspace(0, 1, MERGE_SUBSTEPS + 1)[1:]:
+                if not ctx.model.collision_free(a + s * (b - a)):
+                    return False
+    return True
+
+
+def combine(left: ArmPlan, right: ArmPlan) -> Motion:
+    n = max(left.num_steps, right.num_steps)
+    left, right = left.padded(n), right.padded(n)
+    events = [(i, "left", k, o) for i, k, o in left.events]
+    events += [(i, "right", k, o) for i, k, o in right.events]
+    return Motion(
+        np.hstack([left.q, right.q]),
+        np.column_stack([left.opening, right.opening]),
+        sorted(events),
+        f"{left.label} | {right.label}",
+    )

@@ -1,0 +1,197 @@
+"""Pick and place: grasp an object and lift it, set it down at a pose, steady it, let go.
+
+:func:`pick` tries grasp candidates (generated, or given for a part of a compound object)
+until one plans; :func:`place` tries the object's symmetric yaws about the goal;
+:func:`stabilize` grasps an object where it stands and keeps still; :func:`release` opens
+the gripper where it is and backs off.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+
+import numpy as np
+from pydrake.all import RigidTransform
+
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.grasps import Grasp, arm_base, grasp_candidates, place_candidates
+from bicoord_drake.planning.ik import TcpTarget
+from bicoord_drake.planning.skills.arm import grip, move, move_tcp, solve_tcp
+from bicoord_drake.planning.skills.core import ArmPlan, SkillContext
+
+#: Grasp candidates tried per pick before giving up.
+MAX_GRASP_TRIES = 6
+
+
+def pick(
+    ctx: SkillContext,
+    side: str,
+    name: str,
+    *,
+    lift: float = 0.10,
+    kinds: Sequence[str] | None = None,
+    grasps: Sequence[Grasp] | None = None,
+    approach_opening: float | None = None,
+) -> ArmPlan:
+    """Approach, grasp and lift object `name` with `side`; it is attached afterwards.
+
+    `grasps` (best first) replaces the generated candidates, e.g. for one part of a
+    compound object. With `approach_opening` the jaw narrows to that opening during the
+    approach (so a finger entering a container stays by its wall)."""
+    X_WO = ctx.model.object_pose(name)
+    if grasps is None:
+        base = arm_base(ctx.model.embodiment, side)
+        grasps = grasp_candidates(
+            ctx.model.object(name),
+            ctx.model.embodiment.arm.gripper,
+            X_WO=X_WO,
+            base=base,
+            kinds=kinds,
+        )
+    reasons = []
+    for grasp in grasps[:MAX_GRASP_TRIES]:
+        try:
+            q_pre, q_grasp, q_lift = _grasp_keyframes(ctx, side, name, grasp, lift)
+        except PlanningError as err:
+            reasons.append(err.reason)
+            continue
+        saved = (ctx.q.copy(), dict(ctx.opening))
+        try:
+            approach = move(ctx, side, q_pre, label="approach")
+            if approach_opening is not None:  # narrow the jaw on the way, not after
+                ramp = np.clip(np.arange(approach.num_steps) / ctx.gripper_steps, 0, 1)
+                approach.opening = approach.opening + ramp * (approach_opening - approach.opening)
+                ctx.opening[side] = approach_opening
+            descend = move(ctx, side, q_grasp, label="descend", ignore=[name], straight=True)
+            close = grip(ctx, side, 0.0, label="close")
+            ctx.model.attach(name, side, ctx.q)
+            up = move(ctx, side, q_lift, label="lift", ignore=[name], straight=True)
+        except PlanningError as err:
+            if side in ctx.model.held:
+                ctx.model.detach(side, X_WO=X_WO)
+            ctx.q, ctx.opening = saved
+            reasons.append(err.reason)
+            continue
+        plan = approach.then(descend, close, up)
+        plan.events.append(
+            (approach.num_steps + descend.num_steps + close.num_steps - 3, "attach", name)
+        )
+        plan.label = f"pick {name}"
+        return plan
+    raise PlanningError(
+        "pick_failed",
+        f"{side} cannot pick {name!r}: tried "
+        f"{min(len(grasps), MAX_GRASP_TRIES)} grasps ({', '.join(reasons)})",
+    )
+
+
+def _grasp_keyframes(ctx: SkillContext, side: str, name: str, grasp: Grasp, lift: float):
+    q_pre = solve_tcp(ctx, side, TcpTarget(grasp.X_WPre))
+    q_grasp = solve_tcp(ctx, side, TcpTarget(grasp.X_WG), seed6=q_pre, ignore=[name])
+    X_lift = RigidTransform(grasp.X_WG.rotation(), grasp.X_WG.translation() + [0, 0, lift])
+    q_lift = solve_tcp(ctx, side, TcpTarget(X_lift), seed6=q_grasp, ignore=[name])
+    return q_pre, q_grasp, q_lift
+
+
+def place(
+    ctx: SkillContext,
+    side: str,
+    X_WO_goal: RigidTransform,
+    *,
+    approach_height: float = 0.06,
+    retreat: float = 0.06,
+    ignore: Iterable[str] = (),
+    opening: float = 1.0,
+) -> ArmPlan:
+    """Carry the held object above `X_WO_goal`, lower it there, release and back off.
+
+    The object's symmetric yaws about the goal are tried, most natural first. The gripper
+    opens to `opening` (less than 1 inside a container, so the fingers miss its walls)."""
+    held = ctx.model.held.get(side)
+    if held is None:
+        raise PlanningError("gripper_empty", f"{side} holds nothing to place")
+    ignore = list(ignore)
+    shape = ctx.model.object(held.name).shape
+    base = arm_base(ctx.model.embodiment, side)
+    reasons = []
+    # The model keeps held poses in the gripper link frame; grasps.py works in the TCP frame.
+    X_TO = RigidTransform([-ctx.model.embodiment.arm.gripper.tcp_x, 0, 0]) @ held.X_GO
+    for cand in place_candidates(X_TO, X_WO_goal, shape, base=base, lift=approach_height):
+        try:
+            q_above = solve_tcp(ctx, side, TcpTarget(cand.X_WPre), ignore=ignore)
+            q_place = solve_tcp(
+                ctx,
+                side,
+                TcpTarget(cand.X_WG),
+                seed6=q_above,
+                ignore=ignore + [held.name],
+                env_clearance=0.0,
+            )
+            X_away = RigidTransform(cand.X_WG.rotation(), cand.X_WG.translation() + [0, 0, retreat])
+            q_away = solve_tcp(ctx, side, TcpTarget(X_away), seed6=q_place, ignore=[held.name])
+        except PlanningError as err:
+            reasons.append(err.reason)
+            continue
+        return _place_moves(
+            ctx, side, held.name, cand.X_WO, q_above, q_place, q_away, ignore, opening
+        )
+    raise PlanningError(
+        "place_failed",
+        f"{side} cannot place {held.name!r} at "
+        f"{np.round(X_WO_goal.translation(), 3)} ({', '.join(reasons)})",
+    )
+
+
+def _place_moves(
+    ctx: SkillContext, side, name, X_WO, q_above, q_place, q_away, ignore, opening=1.0
+) -> ArmPlan:
+    carry = move(ctx, side, q_above, label="carry", ignore=ignore)
+    lower = move(ctx, side, q_place, label="lower", ignore=ignore + [name], straight=True)
+    release = grip(ctx, side, opening, label="release")
+    ctx.model.detach(side, X_WO=X_WO)
+    back = move(ctx, side, q_away, label="back off", ignore=ignore + [name], straight=True)
+    plan = carry.then(lower, release, back)
+    plan.events.append((carry.num_steps + lower.num_steps - 2, "detach", name))
+    plan.label = f"place {name}"
+    return plan
+
+
+def stabilize(
+    ctx: SkillContext, side: str, name: str, *, kinds: Sequence[str] | None = None
+) -> ArmPlan:
+    """Grasp object `name` where it is and keep still with the gripper closed on it.
+
+    The object is attached to `side` (it rides with that gripper in the planning model), so
+    the other arm can work around it; a merged motion holds this arm's last sample for as
+    long as the other arm needs. :meth:`release` lets go."""
+    X_WO = ctx.model.object_pose(name)
+    plan = pick(ctx, side, name, lift=0.0, kinds=kinds)
+    plan.label = f"stabilize {name}"
+    # It still rests on its support: the model keeps it a hair above, so that the other
+    # arm's planning does not see the support touching this arm.
+    lift = np.array([0.0, 0.0, ctx.env_clearance + 0.001])
+    ctx.model.detach(side, X_WO=X_WO)
+    ctx.model.attach(name, side, ctx.q, RigidTransform(X_WO.rotation(), X_WO.translation() + lift))
+    ctx.stabilized[side] = lift
+    return plan
+
+
+def release(ctx: SkillContext, side: str, *, back: float = 0.06, label: str = "release") -> ArmPlan:
+    """Open the gripper where it is, leave the object there and back off `back` (m) along
+    the approach axis."""
+    held = ctx.model.held.get(side)
+    if held is None:
+        raise PlanningError("gripper_empty", f"{side} holds nothing to release")
+    X_WO = ctx.model.held_pose(side, ctx.q)
+    lift = ctx.stabilized.pop(side, None)
+    if lift is not None:
+        X_WO = RigidTransform(X_WO.rotation(), X_WO.translation() - lift)
+    opened = grip(ctx, side, 1.0, label="open")
+    ctx.model.detach(side, X_WO=X_WO)
+    X = ctx.model.tcp_pose(ctx.q, side)
+    X_back = RigidTransform(X.rotation(), X.translation() - back * X.rotation().col(0))
+    away = move_tcp(ctx, side, X_back, label="back off", ignore=[held.name], straight=True)
+    plan = opened.then(away)
+    plan.events.append((opened.num_steps - 1, "detach", held.name))
+    plan.label = f"{label} {held.name}"
+    return plan

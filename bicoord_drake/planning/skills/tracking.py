@@ -1,0 +1,158 @@
+"""Tracking and pushing: the TCP follows a Cartesian path exactly at the control samples.
+
+:func:`track` is the shared machinery (IK at every sample, seeded from the previous one, timed
+so that every joint keeps up); :func:`push` moves a held tool's tip down onto a line, along it
+in contact, and up again. :mod:`~bicoord_drake.planning.skills.pour` tilts with it too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Sequence
+
+import numpy as np
+from pydrake.all import RigidTransform
+
+from bicoord_drake.models.objects import BoxShape, CylinderShape
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.ik import TcpTarget
+from bicoord_drake.planning.skills.arm import move_tcp
+from bicoord_drake.planning.skills.core import ArmPlan, SkillContext
+from bicoord_drake.planning.timing import ARM_SLICES, JointLimits, time_path
+
+#: Cartesian skills (pour, push): TCP speed (m/s) and rotation rate (rad/s) at speed = 1.
+TRACK_SPEED = 0.25
+TRACK_ROTATION = 1.2
+#: Cartesian skills: the largest joint step (rad) between two samples (more means the IK
+#: solution jumped to another branch).
+TRACK_MAX_STEP = 0.3
+
+
+def track(
+    ctx: SkillContext,
+    side: str,
+    pose_at: Callable[[float], RigidTransform],
+    distance: float,
+    rotation: float,
+    *,
+    label: str,
+    ignore: Iterable[str] = (),
+) -> ArmPlan:
+    """Follow the TCP path ``pose_at(s)``, s in [0, 1], exactly at the control samples.
+
+    s is timed by a 1-DoF jerk-limited profile for `distance` (m) and `rotation` (rad) at
+    TRACK_SPEED / TRACK_ROTATION (scaled like the joint limits), slowed down until every
+    joint stays within its velocity limit; IK runs at every sample, seeded from the
+    previous one, and every step between samples is collision-checked."""
+    ignore = list(ignore)
+    other = "right" if side == "left" else "left"
+    duration = max(
+        distance / (TRACK_SPEED * ctx.speed), rotation / (TRACK_ROTATION * ctx.speed), 0.2
+    )
+    q_other = ctx.arm_q(other)
+    with ctx.model.ignoring(ignore):  # once: entering it costs a filter rebuild
+        q6 = _track_samples(ctx, side, pose_at, duration, q_other, ignore, label)
+        ctx.model.set_padding(ctx.clearance / 2, 0.0)
+        q = [ctx.with_arm(side, x) for x in q6]
+        if not all(ctx.edge_free(a, b) for a, b in zip(q[:-1], q[1:], strict=True)):
+            raise PlanningError("path_in_collision", f"{label}: the {side} path collides")
+    ctx.q = q[-1].copy()
+    return ArmPlan(side, q6, np.full(len(q6), ctx.opening[side]), label=label)
+
+
+def _track_samples(
+    ctx: SkillContext, side, pose_at, duration, q_other, ignore, label
+) -> np.ndarray:
+    """(N, 6) joint samples of :meth:`_track`, slowed until the joints keep up."""
+    for _ in range(4):
+        rate = 1.0 / duration
+        s_limits = JointLimits(
+            np.zeros(1),
+            np.ones(1),
+            np.array([rate]),
+            np.array([6 * rate]),
+            np.array([60 * rate]),
+        )
+        s = time_path(np.array([[0.0], [1.0]]), s_limits, ctx.dt).q[:, 0]
+        q, prev = [ctx.q.copy()], ctx.q.copy()
+        for s_k in s[1:]:
+            ctx.track_ik.nominal = prev
+            prev = ctx.track_ik.solve_single(
+                side,
+                TcpTarget(pose_at(float(s_k))),
+                q_other,
+                seed=prev,
+                clearance=ctx.clearance,
+                env_clearance=0.0,
+                ignore=ignore,
+                restarts=3,
+            )
+            q.append(prev)
+        q6 = np.array(q)[:, ARM_SLICES[side]]
+        if np.max(np.abs(np.diff(q6, axis=0))) > TRACK_MAX_STEP:
+            raise PlanningError("track_discontinuous", f"{label}: IK switched branches")
+        speed = np.max(np.abs(np.diff(q6, axis=0)) / ctx.dt / ctx.limits6.velocity)
+        if speed <= 1.0:
+            return q6
+        duration *= speed * 1.1
+    raise PlanningError("track_too_fast", f"{label}: the joints cannot follow the path")
+
+
+def push(
+    ctx: SkillContext,
+    side: str,
+    start: Sequence[float],
+    end: Sequence[float],
+    *,
+    tip: Sequence[float] | None = None,
+    approach: float = 0.05,
+    ignore: Iterable[str] = (),
+) -> ArmPlan:
+    """Push with the held tool: its `tip` (a point in the tool's frame; default the end of
+    its long axis that leads in the push direction) goes down onto `start` from `approach`
+    (m) above, along the straight line to `end` in contact, and up again. The tool keeps
+    its orientation; objects in `ignore` (what is pushed) are not collision-checked."""
+    held = ctx.model.held.get(side)
+    if held is None:
+        raise PlanningError("gripper_empty", f"{side} holds no tool to push with")
+    ignore = list(ignore)
+    shape = ctx.model.object(held.name).shape
+    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+    X_WT = ctx.model.tcp_pose(ctx.q, side)
+    X_WO = ctx.model.held_pose(side, ctx.q)
+    if tip is None:
+        p_OQ = _tool_tip(shape, X_WO.rotation().matrix(), end - start)
+    else:
+        p_OQ = np.asarray(tip, dtype=float)
+    offset = X_WT.translation() - X_WO @ p_OQ  # TCP minus tip, fixed while pushing
+    up = np.array([0.0, 0.0, approach])
+
+    def tcp_at(p: np.ndarray) -> RigidTransform:
+        return RigidTransform(X_WT.rotation(), p + offset)
+
+    def line(a: np.ndarray, b: np.ndarray) -> Callable[[float], RigidTransform]:
+        return lambda s: tcp_at(a + s * (b - a))
+
+    above = move_tcp(ctx, side, tcp_at(start + up), label="above start", ignore=ignore)
+    free = ignore + [held.name]  # the tool itself touches what it pushes
+    plans = [above]
+    legs = ((start + up, start, "down"), (start, end, "push"), (end, end + up, "up"))
+    for a, b, label in legs:
+        dist = float(np.linalg.norm(b - a))
+        plans.append(track(ctx, side, line(a, b), dist, 0.0, label=label, ignore=free))
+    plan = plans[0].then(*plans[1:])
+    plan.label = f"push with {held.name}"
+    return plan
+
+
+def _tool_tip(shape, R_WO: np.ndarray, direction: np.ndarray) -> np.ndarray:
+    """The end of a tool's long axis (in the tool's frame) that points most along the world
+    `direction`."""
+    if isinstance(shape, BoxShape):
+        i = int(np.argmax(shape.size))
+        axis, half = np.eye(3)[i], shape.size[i] / 2
+    elif isinstance(shape, CylinderShape):
+        axis, half = np.array([0.0, 0.0, 1.0]), shape.length / 2
+    else:
+        raise PlanningError("unsupported_shape", "a push tool must be a box or a cylinder")
+    sign = 1.0 if (R_WO @ axis) @ np.asarray(direction, dtype=float) >= 0 else -1.0
+    return sign * half * axis

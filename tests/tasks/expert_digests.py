@@ -1,0 +1,107 @@
+"""Digests of the experts' actions in physics: the check that a refactor left every plan intact.
+
+For each (task, seed) in :data:`CASES` the expert runs in physics exactly as the generator runs
+it (:func:`bicoord_drake.runner.generate.run_expert`, no rendering), and the SHA-256 of its
+action array ((T, 14) float64 bytes) is compared with the one committed in
+``expert_digests.json``. Equal digests mean the same commands were sent at every control step,
+bit for bit. ``tests/tasks/test_expert_digests.py`` (slow) runs the comparison.
+
+Commands (from the repository root, one process, about 8-12 min on 2 cores)::
+
+    nice -n 10 python -m tests.tasks.expert_digests            # compare with the committed file
+    nice -n 10 python -m tests.tasks.expert_digests --record   # re-record after an intended change
+
+Re-record only when a plan is *meant* to change (a new skill parameter, a new effort limit in
+models/embodiment.py, a changed scene): run the comparison first to see which cases differ,
+re-record, and commit the new ``expert_digests.json`` together with the change and the
+reason in the commit message. A refactor must pass without re-recording.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import sys
+from pathlib import Path
+
+from bicoord_drake.config import StationConfig
+from bicoord_drake.runner.generate import run_expert
+from bicoord_drake.tasks import get_task
+
+#: The committed digests.
+DIGEST_FILE = Path(__file__).with_name("expert_digests.json")
+
+#: (task, seed) pairs; every one of them succeeds with the current experts (cook seed 1 does not).
+CASES: tuple[tuple[str, int], ...] = tuple(
+    (task, seed)
+    for task in ("jigsaw", "exchange_mics", "handover_block_with_bowls", "cook")
+    for seed in (0, 2)
+)
+
+
+def case_key(task: str, seed: int) -> str:
+    return f"{task}/{seed}"
+
+
+def expert_digest(task: str, seed: int) -> dict:
+    """Run `task`'s expert for `seed` in physics; its step count and action digest.
+
+    Raises RuntimeError if the episode fails (a failed run records no actions to compare).
+    """
+    result = run_expert(get_task(task), seed, StationConfig(render=False))
+    if not result.success or result.recorder is None:
+        raise RuntimeError(f"{task} seed {seed} failed: {result.reason}")
+    actions = result.recorder.actions
+    return {"steps": int(actions.shape[0]), "sha256": hashlib.sha256(actions.tobytes()).hexdigest()}
+
+
+def load_digests(path: Path = DIGEST_FILE) -> dict[str, dict]:
+    return json.loads(path.read_text())
+
+
+def compare(cases=CASES, path: Path = DIGEST_FILE) -> list[str]:
+    """Run every case; one line per case whose digest differs from the committed one."""
+    committed = load_digests(path)
+    diffs = []
+    for task, seed in cases:
+        key = case_key(task, seed)
+        if key not in committed:
+            diffs.append(f"{key}: no committed digest (re-record)")
+            continue
+        got = expert_digest(task, seed)
+        print(f"{key}: {got['steps']} steps {got['sha256'][:16]}", flush=True)
+        if got != committed[key]:
+            diffs.append(f"{key}: committed {committed[key]}, now {got}")
+    return diffs
+
+
+def record(cases=CASES, path: Path = DIGEST_FILE) -> dict[str, dict]:
+    """Run every case and write the digests (temp file, then rename)."""
+    digests = {}
+    for task, seed in cases:
+        digests[case_key(task, seed)] = got = expert_digest(task, seed)
+        print(f"{case_key(task, seed)}: {got['steps']} steps {got['sha256'][:16]}", flush=True)
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(digests, indent=2) + "\n")
+    tmp.replace(path)
+    return digests
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--record", action="store_true", help="re-record the committed digests")
+    args = parser.parse_args(argv)
+    if args.record:
+        record()
+        print(f"wrote {DIGEST_FILE}")
+        return 0
+    diffs = compare()
+    for line in diffs:
+        print("DIFFERS", line)
+    print("all digests match" if not diffs else f"{len(diffs)} of {len(CASES)} differ")
+    return 1 if diffs else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,55 @@
+"""Every registered task has what docs/adding_a_task.md asks of a task: the docstring sections,
+instructions split seen/unseen, a benchmark file and a row in the README's task table."""
+
+import re
+from pathlib import Path
+
+import pytest
+
+from bicoord_drake.tasks import get_task, list_tasks
+from bicoord_drake.tasks.base import MIN_INSTRUCTIONS
+
+ROOT = Path(__file__).resolve().parents[2]
+SECTIONS = ("Description", "Randomization", "Stages", "Success")
+
+
+def readme_task_rows() -> dict[str, list[str]]:
+    """The README's task table (the one under '## Tasks'): task name -> its cells."""
+    text = (ROOT / "README.md").read_text()
+    section = text.split("\n## Tasks\n", 1)[1].split("\n## ", 1)[0]
+    rows = {}
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if line.startswith("|") and cells[0] not in ("task", "") and not set(cells[0]) <= set("-:"):
+            rows[cells[0]] = cells
+    return rows
+
+
+def test_the_readme_table_is_found():
+    rows = readme_task_rows()
+    assert "jigsaw" in rows and len(rows["jigsaw"]) == 5
+
+
+@pytest.mark.parametrize("name", list_tasks())
+def test_docstring_has_every_section(name):
+    doc = type(get_task(name)).__doc__ or ""
+    missing = [s for s in SECTIONS if not re.search(rf"^\s*{s}:\s*\S", doc, re.MULTILINE)]
+    assert not missing, f"{name}: docstring lacks the sections {missing}"
+
+
+@pytest.mark.parametrize("name", list_tasks())
+def test_instructions_are_split_seen_unseen(name):
+    task = get_task(name)
+    seen, unseen = task.instructions("seen"), task.instructions("unseen")
+    assert seen and unseen and not set(seen) & set(unseen)
+    assert len(seen) + len(unseen) >= max(MIN_INSTRUCTIONS, 10)
+
+
+@pytest.mark.parametrize("name", list_tasks())
+def test_benchmark_file_and_readme_row(name):
+    bench = ROOT / "benchmarks" / f"bench_task_{name}.md"
+    assert bench.is_file(), f"{name}: no {bench.relative_to(ROOT)}"
+    assert name in bench.read_text(), f"{bench.name} does not mention {name}"
+    rows = readme_task_rows()
+    assert name in rows, f"{name}: no row in the README's task table"
+    assert f"bench_task_{name}.md" in rows[name][-1], f"{name}: README row names no {bench.name}"
