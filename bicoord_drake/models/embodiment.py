@@ -331,6 +331,23 @@ def _vec(v: Vec3) -> str:
 # --------------------------------------------------------------------------------------------
 
 
+#: Actuator limits of the ViperX 300 s (Interbotix "ViperX-300 6DOF" specifications,
+#: https://docs.trossenrobotics.com/interbotix_xsarms_docs/specifications/vx300s.html): waist,
+#: forearm roll and wrist angle are one DYNAMIXEL XM540-W270 each, shoulder and elbow two each
+#: (a servo and its shadow on one axis: twice the torque), wrist rotate an XM430-W350. The arms
+#: run at 12 V (the ALOHA / AgileX supply). Stall torque at 12 V, the most a servo can give:
+#: XM540-W270 10.6 N m (ROBOTIS e-Manual, https://emanual.robotis.com/docs/en/dxl/x/xm540-w270/),
+#: XM430-W350 4.1 N m (https://emanual.robotis.com/docs/en/dxl/x/xm430-w350/). The effort
+#: limit clips everything the actuator outputs: PD plus gravity feed-forward.
+XM540_STALL = 10.6
+XM430_STALL = 4.1
+#: Joint speed limit, rad/s, used by the planner: just under the XM540-W270's no-load speed at
+#: 12 V, 30 rev/min = pi rad/s (the XM430-W350 turns at up to 46 rev/min = 4.8 rad/s;
+#: Interbotix's vx300s description caps every joint at pi rad/s). 3.14 is the value the experts'
+#: plans were made with.
+ARM_SPEED = 3.14
+
+
 def aloha_viperx() -> Embodiment:
     """Two ViperX 300s arms behind the table, 0.5 m apart, facing +y.
 
@@ -339,7 +356,7 @@ def aloha_viperx() -> Embodiment:
     """
     dark, grey = (0.12, 0.12, 0.14, 1.0), (0.55, 0.56, 0.6, 1.0)
 
-    def j(name, parent, child, xyz, axis, lo, hi, effort, kp, kd, damping, vel=3.14):
+    def j(name, parent, child, xyz, axis, lo, hi, effort, kp, kd, damping, vel=ARM_SPEED):
         return JointSpec(
             name=name,
             parent=parent,
@@ -469,7 +486,7 @@ def aloha_viperx() -> Embodiment:
             (0, 0, 1),
             -pi,
             pi,
-            60,
+            XM540_STALL,
             1000,
             40,
             0.5,
@@ -482,7 +499,7 @@ def aloha_viperx() -> Embodiment:
             (0, 1, 0),
             -1.85005,
             1.25664,
-            120,
+            2 * XM540_STALL,
             2000,
             60,
             0.5,
@@ -495,7 +512,7 @@ def aloha_viperx() -> Embodiment:
             (0, 1, 0),
             -1.76278,
             1.6057,
-            80,
+            2 * XM540_STALL,
             1500,
             30,
             0.5,
@@ -508,7 +525,7 @@ def aloha_viperx() -> Embodiment:
             (1, 0, 0),
             -pi,
             pi,
-            20,
+            XM540_STALL,
             300,
             3,
             0.1,
@@ -521,7 +538,7 @@ def aloha_viperx() -> Embodiment:
             (0, 1, 0),
             -1.8675,
             2.23402,
-            20,
+            XM540_STALL,
             300,
             3,
             0.1,
@@ -534,7 +551,7 @@ def aloha_viperx() -> Embodiment:
             (1, 0, 0),
             -pi,
             pi,
-            10,
+            XM430_STALL,
             150,
             1,
             0.05,

@@ -133,6 +133,8 @@ class Task(ABC):
 
     name: ClassVar[str]
     step_limit: ClassVar[int]
+    #: A seed whose expert episode is kept: the default test suite runs it (tests/tasks/).
+    ci_seed: ClassVar[int] = 0
     instructions_seen: ClassVar[tuple[str, ...]]
     instructions_unseen: ClassVar[tuple[str, ...]]
 
@@ -185,6 +187,9 @@ def check_task_class(cls: type) -> None:
     limit = getattr(cls, "step_limit", None)
     if not isinstance(limit, int) or limit <= 0:
         raise ValueError(f"task {name}: step_limit must be a positive int, got {limit!r}")
+    ci_seed = getattr(cls, "ci_seed", 0)
+    if not isinstance(ci_seed, int) or not 0 <= ci_seed < 2**32:
+        raise ValueError(f"task {name}: ci_seed must be an int in [0, 2**32), got {ci_seed!r}")
     seen = tuple(getattr(cls, "instructions_seen", ()))
     unseen = tuple(getattr(cls, "instructions_unseen", ()))
     if not seen or not unseen:

@@ -113,3 +113,35 @@ def test_gripper_opening_maps_onto_finger_travel():
     assert g.finger_position(1.0) == pytest.approx(g.finger_max)
     assert g.opening(g.finger_position(0.37)) == pytest.approx(0.37)
     assert 2 * g.finger_max >= 0.085  # opens wider than the largest task cube side
+
+
+def test_actuators_have_the_servo_datasheet_torques(robot):
+    """XM540-W270 10.6 N m at 12 V (shoulder and elbow: two servos), XM430-W350 4.1 N m."""
+    e, plant, arms = robot
+    expected = {
+        "waist": 10.6,
+        "shoulder": 21.2,
+        "elbow": 21.2,
+        "forearm_roll": 10.6,
+        "wrist_angle": 10.6,
+        "wrist_rotate": 4.1,
+    }
+    for inst in arms.values():
+        for i in plant.GetJointActuatorIndices(inst):
+            actuator = plant.get_joint_actuator(i)
+            if actuator.joint().name() in expected:
+                assert actuator.effort_limit() == pytest.approx(expected[actuator.joint().name()])
+    assert all(3.1 < j.velocity_limit <= np.pi for j in e.arm.joints)  # 30 rev/min = pi rad/s
+
+
+def test_each_joint_holds_the_arm_stretched_out_horizontally(robot):
+    """Gravity torque of the unloaded arm, reaching straight forward, within every limit."""
+    e, plant, arms = robot
+    context = plant.CreateDefaultContext()
+    q = np.array([0.0, np.pi / 2 - 0.02, -np.pi / 2 + 0.02, 0.0, 0.0, 0.0])  # shoulder flat
+    plant.SetPositions(context, arms["left"], np.concatenate([q, [0.02, 0.02]]))
+    tau = -plant.CalcGravityGeneralizedForces(context)
+    start = plant.GetJointByName("waist", arms["left"]).velocity_start()
+    limits = np.array([j.effort_limit for j in e.arm.joints])
+    assert np.all(np.abs(tau[start : start + 6]) < limits)
+    assert abs(tau[start + 1]) > 0.25 * limits[1]  # the pose really loads the shoulder

@@ -80,6 +80,8 @@ def test_unknown_name_lists_valid_names(empty_registry):
         ({"instructions_unseen": UNSEEN[:2]}, "at least 10"),
         ({"instructions_unseen": (SEEN[0], *UNSEEN)}, "both seen and unseen"),
         ({"step_limit": 0}, "step_limit"),
+        ({"ci_seed": -1}, "ci_seed"),
+        ({"ci_seed": "0"}, "ci_seed"),
         ({"name": "Bad Name"}, "lower-case identifier"),
     ],
 )

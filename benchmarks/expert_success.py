@@ -1,0 +1,249 @@
+#!/usr/bin/env python
+"""Expert success at the current commit, into benchmarks/expert_success.md.
+
+    python benchmarks/expert_success.py --tasks all --seeds 0-29 --workers 2
+    python benchmarks/expert_success.py --tasks cook,jigsaw --seeds 0-9
+
+For each task, runs the library's ``generate()`` without rendering on every seed of the range
+(into a temporary directory, removed afterwards) and rewrites that task's section of the
+markdown file: kept / tried, each failed seed with its reason, mean episode length, wall time,
+the commit and whether the work tree had uncommitted changes, machine and date. Other tasks'
+sections are kept. The file is rewritten (temp name, then rename) after each task, so an
+interrupted run keeps the tasks it finished.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+import platform
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+# Measure the code of this checkout (the commit the report names), whatever is pip-installed.
+sys.path.insert(0, str(ROOT))
+DEFAULT_OUT = ROOT / "benchmarks" / "expert_success.md"
+MAX_SEED = 2**32
+TITLE = "# Expert success at a commit"
+PREAMBLE = (
+    f"{TITLE}\n\n"
+    "Written by `python benchmarks/expert_success.py --tasks all --seeds 0-29 --workers 2`: one "
+    "section per task, each from `generate()` without rendering on every seed of the range (an "
+    "episode is kept only when the expert ran in physics and every stage verified). A section "
+    "names the commit it was measured at; `(dirty)` means the work tree had uncommitted changes.\n"
+)
+
+
+@dataclass
+class TaskResult:
+    """The outcome of one task on a seed range."""
+
+    task: str
+    seeds: range
+    kept: int
+    tried: int
+    failures: list[tuple[int, str]] = field(default_factory=list)
+    mean_length: float | None = None
+    wall_seconds: float = 0.0
+    commit: str = "unknown"
+    dirty: bool = False
+    date: str = ""
+    machine: str = ""
+
+
+def parse_seeds(text: str) -> range:
+    """'0-29' -> range(0, 30); '7' -> range(7, 8). ValueError says what is wrong."""
+    m = re.fullmatch(r"\s*(\d+)\s*(?:-\s*(\d+)\s*)?", text)
+    if not m:
+        raise ValueError(f"seeds must look like FIRST-LAST (e.g. 0-29) or one seed, got {text!r}")
+    first = int(m.group(1))
+    last = int(m.group(2)) if m.group(2) is not None else first
+    if first > last:
+        raise ValueError(f"seed range {text!r} is empty: {first} > {last}")
+    if last >= MAX_SEED:
+        raise ValueError(f"seeds must be below 2**32 = {MAX_SEED}, got {last}")
+    return range(first, last + 1)
+
+
+def parse_tasks(text: str, valid: list[str]) -> list[str]:
+    """'all' or a comma-separated list of registered task names (unknown ones listed)."""
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    if names == ["all"]:
+        return list(valid)
+    if not names:
+        raise ValueError(f"no task given; choose 'all' or some of: {', '.join(valid)}")
+    unknown = [t for t in names if t not in valid]
+    if unknown:
+        raise ValueError(
+            f"unknown task{'s' if len(unknown) > 1 else ''} {', '.join(map(repr, unknown))}; "
+            f"choose 'all' or some of: {', '.join(valid)}"
+        )
+    return list(dict.fromkeys(names))
+
+
+def git_state(root: Path = ROOT) -> tuple[str, bool]:
+    """(commit hash, whether tracked files differ from it); ('unknown', False) outside git."""
+    try:
+        commit = subprocess.run(
+            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        status = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+            check=True,
+        ).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown", False
+    return commit, bool(status.strip())
+
+
+def machine() -> str:
+    try:
+        from importlib.metadata import version
+
+        drake = f", drake {version('drake')}"
+    except Exception:  # noqa: BLE001 - the version is only informative
+        drake = ""
+    python = platform.python_version()
+    return f"{platform.machine()}, nproc = {os.cpu_count()}, Python {python}{drake}"
+
+
+def seed_text(seeds: range) -> str:
+    return f"{seeds.start}–{seeds.stop - 1}" if len(seeds) > 1 else str(seeds.start)
+
+
+def format_section(r: TaskResult) -> str:
+    """The markdown section of one task (starts with '## <task>')."""
+    share = 100 * r.kept / r.tried if r.tried else 0.0
+    length = f"{r.mean_length:.0f} control steps" if r.mean_length is not None else "n/a"
+    lines = [
+        f"## {r.task}",
+        "",
+        f"**{r.kept}/{r.tried} kept** ({share:.0f} %), seeds {seed_text(r.seeds)}.",
+        "",
+        "| | |",
+        "|---|---|",
+        f"| commit | `{r.commit}`{' (dirty)' if r.dirty else ''} |",
+        f"| mean length of kept episodes | {length} |",
+        f"| wall time | {r.wall_seconds / 60:.1f} min |",
+        f"| date (UTC) | {r.date} |",
+        f"| machine | {r.machine} |",
+        "",
+    ]
+    if r.failures:
+        kinds = Counter(reason.split(":", 1)[0] for _, reason in r.failures)
+        lines.append(
+            "Failures by kind: " + ", ".join(f"`{k}` {n}" for k, n in sorted(kinds.items())) + "."
+        )
+        lines += ["", "| seed | reason |", "|---:|---|"]
+        for seed, reason in sorted(r.failures):
+            text = re.sub(r"\s+", " ", reason).replace("|", "\\|")
+            lines.append(f"| {seed} | {text[:300]} |")
+    else:
+        lines.append("No seed failed.")
+    return "\n".join(lines) + "\n"
+
+
+def update_markdown(text: str, sections: dict[str, str]) -> str:
+    """`text` with the '## <task>' sections in `sections` replaced (or appended); others kept."""
+    parts = re.split(r"(?m)^(?=## )", text) if text.strip() else []
+    head = parts[0] if parts and not parts[0].startswith("## ") else PREAMBLE
+    existing = [p for p in parts if p.startswith("## ")]
+    out, done = [], set()
+    for part in existing:
+        name = part.split("\n", 1)[0][3:].strip()
+        if name in sections:
+            out.append(sections[name])
+            done.add(name)
+        else:
+            out.append(part)
+    out += [body for name, body in sections.items() if name not in done]
+    return "\n".join(s.rstrip("\n") + "\n" for s in [head, *out])
+
+
+def write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
+
+
+def run_task(task: str, seeds: range, workers: int, work_dir: Path) -> TaskResult:
+    """Every seed of `seeds` through generate() (no rendering, no video) in `work_dir`."""
+    from bicoord_drake.runner.generate import GenerateConfig, generate
+
+    config = GenerateConfig(
+        task=task,
+        episodes=len(seeds),
+        seed=seeds.start,
+        max_tries=len(seeds),
+        out=str(work_dir),
+        render=False,
+        video=False,
+        workers=workers,
+    )
+    commit, dirty = git_state()
+    t0 = time.perf_counter()
+    summary = generate(config)
+    end_commit, end_dirty = git_state()  # the tree may change while the seeds run
+    dirty = dirty or end_dirty or end_commit != commit
+    return TaskResult(
+        task=task,
+        seeds=seeds,
+        kept=summary.kept,
+        tried=summary.tried,
+        failures=[(e.seed, e.reason or "") for e in summary.failures],
+        mean_length=summary.mean_length,
+        wall_seconds=time.perf_counter() - t0,
+        commit=commit,
+        dirty=dirty,
+        date=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M"),
+        machine=machine(),
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[1])
+    parser.add_argument("--tasks", default="all", help="'all' or comma-separated task names")
+    parser.add_argument("--seeds", default="0-29", help="FIRST-LAST, inclusive (default 0-29)")
+    parser.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="markdown file to update")
+    args = parser.parse_args(argv)
+
+    try:
+        seeds = parse_seeds(args.seeds)
+        if not 1 <= args.workers <= 64:
+            raise ValueError(f"--workers must be in [1, 64], got {args.workers}")
+        from bicoord_drake.tasks import list_tasks
+
+        tasks = parse_tasks(args.tasks, list_tasks())
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
+        return 2
+    logging.getLogger("drake").setLevel(logging.ERROR)
+    for task in tasks:
+        print(f"{task}: seeds {seed_text(seeds)} ...", flush=True)
+        with tempfile.TemporaryDirectory(prefix=f"expert_success_{task}_") as tmp:
+            result = run_task(task, seeds, args.workers, Path(tmp))
+        text = args.out.read_text() if args.out.exists() else ""
+        write_atomic(args.out, update_markdown(text, {task: format_section(result)}))
+        print(
+            f"{task}: kept {result.kept}/{result.tried} in {result.wall_seconds / 60:.1f} min",
+            flush=True,
+        )
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

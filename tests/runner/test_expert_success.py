@@ -1,0 +1,99 @@
+"""benchmarks/expert_success.py: argument checks and the markdown it writes (no physics)."""
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "expert_success.py"
+
+
+@pytest.fixture(scope="module")
+def es():
+    spec = importlib.util.spec_from_file_location("expert_success", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["expert_success"] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_seed_ranges(es):
+    assert es.parse_seeds("0-29") == range(0, 30)
+    assert es.parse_seeds("7") == range(7, 8)
+    assert es.parse_seeds(" 3 - 5 ") == range(3, 6)
+
+
+@pytest.mark.parametrize(
+    "text,words",
+    [("9-3", "empty"), ("a-b", "FIRST-LAST"), ("-4", "FIRST-LAST"), ("0-4294967296", "2**32")],
+)
+def test_bad_seed_ranges_are_refused(es, text, words):
+    with pytest.raises(ValueError, match=words.replace("*", r"\*")):
+        es.parse_seeds(text)
+
+
+def test_tasks_all_and_unknown_names(es):
+    valid = ["cook", "jigsaw"]
+    assert es.parse_tasks("all", valid) == valid
+    assert es.parse_tasks("jigsaw, cook,jigsaw", valid) == ["jigsaw", "cook"]
+    with pytest.raises(ValueError, match="'origami'.*cook, jigsaw"):
+        es.parse_tasks("cook,origami", valid)
+
+
+def result(es, task, kept, failures=()):
+    return es.TaskResult(
+        task=task,
+        seeds=range(0, 10),
+        kept=kept,
+        tried=10,
+        failures=list(failures),
+        mean_length=512.4,
+        wall_seconds=125.0,
+        commit="abc123",
+        dirty=True,
+        date="2026-11-23 10:00",
+        machine="x86_64",
+    )
+
+
+def test_section_has_counts_reasons_length_time_and_commit(es):
+    text = es.format_section(
+        result(es, "cook", 8, [(4, "planning: no IK | x"), (1, "stage_not_verified: serve")])
+    )
+    assert text.startswith("## cook\n")
+    assert "**8/10 kept** (80 %), seeds 0–9" in text
+    assert "`abc123` (dirty)" in text and "512 control steps" in text and "2.1 min" in text
+    assert "`planning` 1, `stage_not_verified` 1" in text
+    # failed seeds in order, table pipes escaped
+    assert text.index("| 1 | stage_not_verified") < text.index("| 4 | planning: no IK \\| x |")
+
+
+def test_updating_one_task_keeps_the_others(es):
+    first = es.update_markdown("", {"cook": es.format_section(result(es, "cook", 8))})
+    assert first.startswith(es.TITLE)
+    both = es.update_markdown(first, {"jigsaw": es.format_section(result(es, "jigsaw", 10))})
+    again = es.update_markdown(both, {"cook": es.format_section(result(es, "cook", 9))})
+    assert again.count("## cook") == 1 and again.count("## jigsaw") == 1
+    assert "**9/10 kept**" in again and "**8/10 kept**" not in again
+    assert "**10/10 kept**" in again
+    assert again.index("## cook") < again.index("## jigsaw")  # order kept
+    assert again.startswith(es.TITLE)
+
+
+def test_cli_refuses_bad_input_before_running_anything(tmp_path):
+    out = tmp_path / "success.md"
+    for args, words in [
+        (("--tasks", "origami"), "jigsaw"),
+        (("--seeds", "5-2"), "empty"),
+        (("--workers", "0"), "--workers"),
+    ]:
+        done = subprocess.run(
+            [sys.executable, str(SCRIPT), *args, "--out", str(out)],
+            capture_output=True,
+            text=True,
+        )
+        assert done.returncode == 2
+        assert words in done.stderr and "Traceback" not in done.stderr
+    assert not out.exists()
