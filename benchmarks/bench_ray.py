@@ -73,7 +73,7 @@ def main() -> None:
     parser.add_argument("--bytes", action="store_true", help="also measure a rendered episode")
     args = parser.parse_args()
 
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False)
     work = Path(tempfile.mkdtemp(prefix="bench_ray_"))
     print(
         f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "

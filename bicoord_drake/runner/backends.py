@@ -171,7 +171,7 @@ class RayBackend(Backend):
         if not ray.is_initialized():
             options: dict[str, Any] = {"include_dashboard": False} if address is None else {}
             ray.init(
-                address=address,
+                address=address or "local",  # None could join a cluster found on this node
                 log_to_driver=verbose,
                 logging_level=logging.INFO if verbose else logging.ERROR,
                 runtime_env={"env_vars": {"LP_NUM_THREADS": "1"}},

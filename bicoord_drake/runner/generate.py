@@ -265,8 +265,9 @@ def generate_dataset(
     process alone assigns episode indices (in the order episodes finish), places the files and
     writes each task's ``manifest.json`` and the run's ``dataset_<config_name>.json``.
     `progress` is called once at the start and after every finished seed."""
-    runs = [_TaskRun(config.for_task(name)) for name in resolve_tasks(config.task)]
-    dataset = _DatasetManifest(config, runs)
+    names = resolve_tasks(config.task)
+    dataset = _DatasetManifest(config)  # checks the settings before any directory is made
+    runs = [_TaskRun(config.for_task(name)) for name in names]
     started = time.perf_counter()
     pending: dict[Any, tuple[_TaskRun, int]] = {}
     with make_backend(config.backend, config.workers, config.ray_address, config.verbose) as pool:
@@ -483,8 +484,9 @@ def _place_files(outcome: SeedOutcome, layout: EpisodeLayout, index: int) -> Non
 class _DatasetManifest:
     """``<out>/dataset_<config_name>.json``: the run's tasks, settings and per-task counts."""
 
-    def __init__(self, config: GenerateConfig, runs: list[_TaskRun]) -> None:
+    def __init__(self, config: GenerateConfig) -> None:
         self.path = Path(config.out) / f"dataset_{config.config_name}.json"
+        self.config_name = config.config_name
         self.settings = {k: v for k, v in config.data_settings().items() if k != "task"}
         self.backend = ""
         self.tasks: dict[str, Any] = {}
@@ -514,7 +516,7 @@ class _DatasetManifest:
             self.path,
             {
                 "schema_version": SCHEMA_VERSION,
-                "config_name": runs[0].config.config_name,
+                "config_name": self.config_name,
                 "settings": self.settings,
                 "tasks": self.tasks,
                 "kept": sum(t["kept"] for t in self.tasks.values()),
