@@ -109,16 +109,27 @@ class ProcessBackend(Backend):
 
     def __init__(self, workers: int, verbose: bool = False) -> None:
         self.slots = workers
-        threads = str(max(1, (os.cpu_count() or 1) // workers))
-        self._pool = ProcessPoolExecutor(
-            max_workers=workers,
+        self._verbose = verbose
+        self._pool = self._new_pool()
+
+    def _new_pool(self) -> ProcessPoolExecutor:
+        threads = str(max(1, (os.cpu_count() or 1) // self.slots))
+        return ProcessPoolExecutor(
+            max_workers=self.slots,
             mp_context=get_context("spawn"),
             initializer=_init_process,
-            initargs=(threads, verbose),
+            initargs=(threads, self._verbose),
         )
 
     def submit(self, fn: Callable[..., Any], *args: Any) -> Future:
-        return self._pool.submit(fn, *args)
+        from concurrent.futures.process import BrokenProcessPool
+
+        try:
+            return self._pool.submit(fn, *args)
+        except BrokenProcessPool:  # a worker died: its jobs failed with WorkerLost; go on
+            self._pool.shutdown(wait=False)
+            self._pool = self._new_pool()
+            return self._pool.submit(fn, *args)
 
     def wait(self, handles: Sequence[Future]) -> Future:
         done, _ = wait_futures(handles, return_when=FIRST_COMPLETED)

@@ -10,6 +10,7 @@ from bicoord_drake.runner.backends import (
     InlineBackend,
     ProcessBackend,
     RayBackend,
+    WorkerLost,
     make_backend,
 )
 
@@ -61,6 +62,19 @@ def test_inline_and_process_pool_return_every_value():
     assert drain(InlineBackend(), square, range(4)) == [0, 1, 4, 9]
     with ProcessBackend(2) as backend:
         assert sorted(drain(backend, square, range(6))) == [0, 1, 4, 9, 16, 25]
+
+
+def test_a_killed_local_process_is_a_lost_job_and_the_pool_goes_on(tmp_path):
+    marker = tmp_path / "pids"
+    with ProcessBackend(2) as backend:
+        job = backend.submit(slow_pid, str(marker), 30.0)
+        deadline = time.time() + 120
+        while not marker.exists() and time.time() < deadline:
+            time.sleep(0.1)
+        os.kill(int(marker.read_text().split()[0]), signal.SIGKILL)
+        with pytest.raises(WorkerLost):
+            backend.result(backend.wait([job]))
+        assert sorted(drain(backend, square, range(3))) == [0, 1, 4]
 
 
 def test_a_job_exception_reaches_the_driver_with_its_type(ray_backend):
