@@ -6,16 +6,18 @@ One local Ray instance (``ray.init(num_cpus=2)``) serves every run. Each repeat 
 same seeds (``--seed`` .. ``--seed + episodes - 1``, no rendering) once with ``--workers 1`` and
 once with ``--workers 2``, interleaved (the order alternates between repeats) so both see the
 same background load; the 1-minute load average is recorded before every run. The speed-up is
-the ratio of the median wall times. ``--bytes`` adds one rendered episode (default 320x240 RGB,
-head-camera MP4) and reports the size of what a worker returns to the driver: the episode's
-HDF5, MP4 and JSON files.
+the ratio of the median wall times. ``--bytes`` adds one rendered episode (default settings:
+three 320x240 RGB cameras, head-camera MP4) run as a Ray job, and reports the size of what the
+worker returns to the driver: the episode's files, and the whole pickled result with the files
+(default) and with paths only (``--shared-fs``).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
+import dataclasses
 import os
+import pickle
 import platform
 import shutil
 import statistics
@@ -25,7 +27,8 @@ from pathlib import Path
 
 import ray
 
-from bicoord_drake.runner.generate import GenerateConfig, generate
+from bicoord_drake.runner.backends import RayBackend
+from bicoord_drake.runner.generate import GenerateConfig, generate, produce_episode
 
 
 def timed_run(task: str, episodes: int, seed: int, workers: int, out: Path) -> dict:
@@ -47,21 +50,22 @@ def timed_run(task: str, episodes: int, seed: int, workers: int, out: Path) -> d
     return {"workers": workers, "wall": round(wall, 1), "kept": summary.kept, "load": load}
 
 
-def episode_bytes(task: str, seed: int, out: Path) -> dict:
-    shutil.rmtree(out, ignore_errors=True)
-    config = GenerateConfig(
-        task=task, episodes=1, seed=seed, max_tries=1, out=str(out), backend="ray", workers=1
-    )
-    generate(config)
-    root = out / task / "default"
-    sizes = {
-        "hdf5": (root / "data" / "episode0.hdf5").stat().st_size,
-        "mp4": (root / "video" / "episode0.mp4").stat().st_size,
-        "json": (root / "instructions" / "episode0.json").stat().st_size
-        + (root / "stages" / "episode0.json").stat().st_size,
+def episode_bytes(task: str, seed: int, staging: Path) -> dict:
+    """Run one rendered episode as a Ray job (default settings) and size what comes back."""
+    config = GenerateConfig(task=task, episodes=1, seed=seed, backend="ray", workers=1)
+    backend = RayBackend(workers=1)
+    outcome = backend.result(backend.wait([backend.submit(produce_episode, config, seed, None)]))
+    if not outcome.success:
+        raise RuntimeError(f"seed {seed} failed: {outcome.reason}")
+    sizes = {kind: len(data) for kind, data in outcome.files.items()}
+    paths = {kind: str(staging / f"seed{seed}" / kind / "episode0") for kind in sizes}
+    shared = dataclasses.replace(outcome, files=None, staged=paths)
+    return {
+        **sizes,
+        "frames": outcome.frames,
+        "pickled (default)": len(pickle.dumps(outcome)),
+        "pickled (--shared-fs)": len(pickle.dumps(shared)),
     }
-    frames = json.loads((root / "manifest.json").read_text())["episodes"][0]["frames"]
-    return {**sizes, "total": sum(sizes.values()), "frames": frames}
 
 
 def main() -> None:
@@ -85,14 +89,18 @@ def main() -> None:
             run = timed_run(args.task, args.episodes, args.seed, workers, work / f"w{workers}")
             runs.append(run)
             print(f"repeat {r}: {run}", flush=True)
-    median = {w: statistics.median(x["wall"] for x in runs if x["workers"] == w) for w in (1, 2)}
-    print(
-        f"median wall: 1 worker {median[1]:.1f} s, 2 workers {median[2]:.1f} s, "
-        f"speed-up {median[1] / median[2]:.2f}x; "
-        f"load average {min(x['load'] for x in runs):.1f}-{max(x['load'] for x in runs):.1f}"
-    )
+    if runs:
+        median = {
+            w: statistics.median(x["wall"] for x in runs if x["workers"] == w) for w in (1, 2)
+        }
+        loads = [x["load"] for x in runs]
+        print(
+            f"median wall: 1 worker {median[1]:.1f} s, 2 workers {median[2]:.1f} s, "
+            f"speed-up {median[1] / median[2]:.2f}x; load average {min(loads):.1f}-{max(loads):.1f}"
+        )
     if args.bytes:
-        print("bytes per rendered episode:", episode_bytes(args.task, args.seed, work / "bytes"))
+        staging = Path("/shared/out") / args.task / "default" / ".staging"
+        print("bytes per rendered episode:", episode_bytes(args.task, args.seed, staging))
     shutil.rmtree(work, ignore_errors=True)
     ray.shutdown()
 
