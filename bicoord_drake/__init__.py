@@ -22,6 +22,7 @@ _LAZY = {
     "get_task": "bicoord_drake.tasks",
     "make_env": "bicoord_drake.env",
     "generate": "bicoord_drake.runner.generate",
+    "generate_dataset": "bicoord_drake.runner.generate",
     "evaluate": "bicoord_drake.runner.evaluate",
 }
 

@@ -7,6 +7,7 @@ Examples:
     python scripts/evaluate.py --task jigsaw --policy replay --data data/jigsaw --stage 2
     python scripts/evaluate.py --task jigsaw --policy noop --episodes 5 --no-expert-check --json
     python scripts/evaluate.py --task jigsaw --policy expert --episodes 3 --video videos/
+    python scripts/evaluate.py --task jigsaw --policy my_pkg.policies:MyPolicy --backend ray
 
 Policies: a built-in (replay: the recorded actions of the --data episodes; expert: the task's
 planner in closed loop; noop: hold still) or package.module:name - a class with
@@ -15,7 +16,8 @@ reset(instruction) and act(obs) -> action, or a function act(obs). Evaluation se
 (the verdict is cached in ~/.cache/bicoord_drake/expert_check/, or $BICOORD_CACHE), except with
 --policy expert, where it is a failed rollout counted in SR and SSR. With --data the rollouts
 are the demonstrations' own seeds. The report (report.json, stage_success.png) goes to
-<out>/<task>/<policy>/.
+<out>/<task>/<policy>/. With --workers N or --backend ray the rollouts run in parallel (one
+environment and policy instance per worker); the report is the same as a sequential run's.
 """
 
 from __future__ import annotations
@@ -65,7 +67,23 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--max-tries", type=int, default=0, help="seeds to try at most (default: 3 x episodes)"
     )
-    parser.add_argument("--verbose", action="store_true", help="show Drake's log")
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=0,
+        help="rollouts in flight (default: 1 locally, every CPU of the Ray cluster)",
+    )
+    parser.add_argument(
+        "--backend",
+        default="local",
+        choices=("local", "ray"),
+        help="local processes (default) or Ray (pip install -e '.[ray]')",
+    )
+    parser.add_argument(
+        "--ray-address",
+        help="join this Ray cluster (auto | HOST:PORT); default: start a local Ray instance",
+    )
+    parser.add_argument("--verbose", action="store_true", help="show Drake's and Ray's logs")
     args = parser.parse_args(argv)
 
     import logging
@@ -106,6 +124,10 @@ def main(argv: list[str] | None = None) -> int:
             step_limit=args.step_limit,
             expert_check=not args.no_expert_check,
             max_tries=args.max_tries,
+            workers=args.workers,
+            backend=args.backend,
+            ray_address=args.ray_address,
+            verbose=args.verbose,
         )
     except ValidationError as err:
         return usage(validation_message(err, as_option=True))
@@ -135,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
     except PolicyLoadError as err:
         bar.close()
         return usage(format_failure(err).split(": ", 1)[-1])
-    except (ValueError, OSError) as err:
+    except (ValueError, OSError, ImportError) as err:
         bar.close()
         print(f"error: {format_failure(err)}", file=sys.stderr)
         return 1

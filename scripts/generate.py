@@ -6,10 +6,14 @@ Examples:
     python scripts/generate.py --task jigsaw --episodes 3 --out data --seed 0
     python scripts/generate.py --task jigsaw --resolution 640x480 --depth
     python scripts/generate.py --task jigsaw --no-render           # states and actions only
+    python scripts/generate.py --task all --episodes 50 --workers 2  # every task, 2 processes
+    python scripts/generate.py --task jigsaw,cook --backend ray      # a local Ray instance
+    python scripts/generate.py --task all --backend ray --ray-address auto   # join a cluster
 
 Seeds are tried from --seed upward until --episodes succeed; an episode is kept only if the
 expert ran in physics and every stage verified. Failures and their reasons go to
-<out>/<task>/<config>/manifest.json. Running the same command again resumes where it stopped.
+<out>/<task>/<config>/manifest.json; <out>/dataset_<config>.json lists the run's tasks.
+Running the same command again resumes where it stopped.
 """
 
 from __future__ import annotations
@@ -24,8 +28,12 @@ def main(argv: list[str] | None = None) -> int:
         epilog=__doc__.split("\n", 2)[2],
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--task", required=True, help="task name (see the list on a wrong name)")
-    parser.add_argument("--episodes", type=int, default=10, help="episodes to keep (default 10)")
+    parser.add_argument(
+        "--task", required=True, help="task name, a comma list, or all (a wrong name lists them)"
+    )
+    parser.add_argument(
+        "--episodes", type=int, default=10, help="episodes to keep per task (default 10)"
+    )
     parser.add_argument(
         "--seed", type=int, default=0, help="first seed to try, in [0, 2**32) (default 0)"
     )
@@ -52,10 +60,27 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--workers",
         type=int,
-        default=1,
-        help="seeds run in parallel processes (default 1; try the core count)",
+        default=0,
+        help="seeds in flight (default: 1 locally, every CPU of the Ray cluster; "
+        "locally try the core count)",
     )
-    parser.add_argument("--verbose", action="store_true", help="show Drake's solver log")
+    parser.add_argument(
+        "--backend",
+        default="local",
+        choices=("local", "ray"),
+        help="local processes (default) or Ray (pip install -e '.[ray]')",
+    )
+    parser.add_argument(
+        "--ray-address",
+        help="join this Ray cluster (auto | HOST:PORT); default: start a local Ray instance",
+    )
+    parser.add_argument(
+        "--shared-fs",
+        action="store_true",
+        help="Ray workers write episode files to --out themselves (it must be on a file system "
+        "every node mounts); default: they send them to this process",
+    )
+    parser.add_argument("--verbose", action="store_true", help="show Drake's and Ray's logs")
     args = parser.parse_args(argv)
 
     import logging
@@ -63,17 +88,21 @@ def main(argv: list[str] | None = None) -> int:
     from pydantic import ValidationError
 
     from bicoord_drake.config import validation_message
-    from bicoord_drake.runner.generate import GenerateConfig, format_failure, generate
-    from bicoord_drake.tasks import list_tasks
+    from bicoord_drake.runner.generate import (
+        GenerateConfig,
+        format_failure,
+        generate_dataset,
+        resolve_tasks,
+    )
 
     # Drake logs solver fallbacks and checker setup at INFO/WARNING; the manifest has what
     # matters. Set after pydrake's import, which resets the level.
     logging.getLogger("drake").setLevel(logging.DEBUG if args.verbose else logging.ERROR)
 
-    if args.task not in list_tasks():
-        print(
-            f"error: unknown task {args.task!r}; tasks: {', '.join(list_tasks())}", file=sys.stderr
-        )
+    try:
+        tasks = resolve_tasks(args.task)
+    except ValueError as err:
+        print(f"error: {err}", file=sys.stderr)
         return 2
     try:
         config = GenerateConfig(
@@ -88,6 +117,10 @@ def main(argv: list[str] | None = None) -> int:
             config_name=args.config_name,
             max_tries=args.max_tries,
             workers=args.workers,
+            backend=args.backend,
+            ray_address=args.ray_address,
+            shared_fs=args.shared_fs,
+            verbose=args.verbose,
         )
     except ValidationError as err:
         print(f"error: {validation_message(err, as_option=True)}", file=sys.stderr)
@@ -95,15 +128,21 @@ def main(argv: list[str] | None = None) -> int:
 
     from tqdm import tqdm
 
-    bar = tqdm(total=config.episodes, unit="episode", dynamic_ncols=True)
+    bar = tqdm(total=config.episodes * len(tasks), unit="episode", dynamic_ncols=True)
+    first = True
 
-    def progress(kept: int, tried: int, target: int, message: str) -> None:
-        bar.n = kept
-        bar.set_postfix_str(f"tried {tried} | {message[:60]}")
-        bar.refresh()
+    def progress(status) -> None:
+        nonlocal first
+        if first:  # episodes kept by an earlier run do not count toward the rate (ETA)
+            first = False
+            bar.initial = bar.n = bar.last_print_n = status.kept
+        bar.update(status.kept - bar.n)
+        counts = " ".join(f"{t} {k}/{n}" for t, (k, _, n) in status.counts.items())
+        tried = sum(tr for _, tr, _ in status.counts.values())
+        bar.set_postfix_str(f"{counts} | tried {tried} | {status.message[:50]}")
 
     try:
-        summary = generate(config, progress)
+        result = generate_dataset(config, progress)
     except KeyboardInterrupt:
         bar.close()
         print(
@@ -111,22 +150,25 @@ def main(argv: list[str] | None = None) -> int:
             file=sys.stderr,
         )
         return 130
-    except (ValueError, OSError) as err:
+    except (ValueError, OSError, ImportError) as err:
         bar.close()
         print(f"error: {format_failure(err)}", file=sys.stderr)
         return 1
     bar.close()
-    print(f"\n{summary.root}: kept {summary.kept} / tried {summary.tried}")
-    if summary.mean_length is not None:
-        print(
-            f"mean length {summary.mean_length:.0f} steps; "
-            f"{summary.seconds_per_episode:.1f} s per kept episode"
-        )
-    for failure in summary.failures:
-        print(f"  seed {failure.seed} failed: {failure.reason}")
-    if summary.metrics_table:
-        print("\n" + summary.metrics_table)
-    return 0 if summary.kept >= config.episodes else 1
+    for summary in result.tasks.values():
+        print(f"\n{summary.root}: kept {summary.kept} / tried {summary.tried}")
+        if summary.mean_length is not None:
+            print(
+                f"mean length {summary.mean_length:.0f} steps; "
+                f"{summary.seconds_per_episode:.1f} s per kept episode"
+            )
+        for failure in summary.failures:
+            print(f"  seed {failure.seed} failed: {failure.reason}")
+        if summary.metrics_table:
+            print("\n" + summary.metrics_table)
+    if len(result.tasks) > 1:
+        print(f"\n{result.manifest}: {len(result.tasks)} tasks, {result.seconds:.0f} s")
+    return 0 if result.complete else 1
 
 
 if __name__ == "__main__":

@@ -670,6 +670,7 @@ class EpisodeEntry(BaseModel):
     reason: str | None = Field(None, description="why the expert or the rollout failed")
     frames: int | None = None
     timings: dict[str, float] = Field(default_factory=dict, description="seconds per phase")
+    worker: str | None = Field(None, description="host:pid of the process that ran the seed")
 
 
 class Manifest(BaseModel):

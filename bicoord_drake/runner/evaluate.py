@@ -91,6 +91,12 @@ class EvaluateConfig(BaseModel):
     step_limit: int | None = Field(None, ge=1, description="override the task's step limit")
     expert_check: bool = True
     max_tries: int = Field(0, ge=0, description="seeds to try at most (0: 3 x episodes)")
+    workers: int = Field(
+        0, ge=0, le=100_000, description="rollouts in flight (0: 1 locally, every CPU on Ray)"
+    )
+    backend: Literal["local", "ray"] = "local"
+    ray_address: str | None = Field(None, description="join this Ray cluster (auto, HOST:PORT)")
+    verbose: bool = Field(False, description="workers' Drake and Ray logs on the terminal")
 
     @field_validator("resolution")
     @classmethod
@@ -115,7 +121,14 @@ class EvaluateConfig(BaseModel):
                     f"{first}, past the largest seed 2**32 - 1; use a seed <= {largest}"
                 )
             check_seed_range(first, self.max_tries or 3 * self.episodes, "evaluation seed")
+        if self.ray_address and self.backend != "ray":
+            raise ValueError("ray_address is a setting of the ray backend: add backend='ray'")
         return self
+
+    @property
+    def parallel(self) -> bool:
+        """Rollouts run as backend jobs (Ray, or several local processes)."""
+        return self.backend != "local" or self.workers > 1
 
     @property
     def label(self) -> str:
@@ -356,25 +369,34 @@ class ExpertCheck:
 
     def __call__(self, seed: int) -> tuple[bool, str | None]:
         """(ok, reason) for `seed`, from the cache or by running the expert."""
-        key = self._key(seed)
-        if key not in self._cache:
-            from bicoord_drake.config import StationConfig
-            from bicoord_drake.runner.generate import format_failure, run_expert
+        if self.lookup(seed) is None:
+            self.store(seed, expert_verdict(self.task, seed, self.fps))
+        return self.lookup(seed)
 
-            try:
-                result = run_expert(
-                    self.task, seed, StationConfig(control_rate=self.fps, render=False)
-                )
-                verdict = {"ok": result.success, "reason": result.reason}
-            except Exception as exc:  # an expert crash is a failed seed, not a failed run
-                verdict = {"ok": False, "reason": f"expert crashed: {format_failure(exc)}"}
-            self._cache[key] = verdict
-            try:
-                write_json(self.path, self._cache)
-            except OSError:
-                pass  # the cache is an optimisation
-        v = self._cache[key]
-        return bool(v["ok"]), v.get("reason")
+    def lookup(self, seed: int) -> tuple[bool, str | None] | None:
+        """The cached (ok, reason) of `seed`, None if not checked yet."""
+        v = self._cache.get(self._key(seed))
+        return None if v is None else (bool(v["ok"]), v.get("reason"))
+
+    def store(self, seed: int, verdict: dict[str, Any]) -> None:
+        """Cache a verdict of :func:`expert_verdict` (e.g. one a worker computed)."""
+        self._cache[self._key(seed)] = verdict
+        try:
+            write_json(self.path, self._cache)
+        except OSError:
+            pass  # the cache is an optimisation
+
+
+def expert_verdict(task: Task, seed: int, fps: float) -> dict[str, Any]:
+    """``{"ok": ..., "reason": ...}``: whether the expert solves `seed` in physics (no cameras)."""
+    from bicoord_drake.config import StationConfig
+    from bicoord_drake.runner.generate import format_failure, run_expert
+
+    try:
+        result = run_expert(task, seed, StationConfig(control_rate=fps, render=False))
+        return {"ok": result.success, "reason": result.reason}
+    except Exception as exc:  # an expert crash is a failed seed, not a failed run
+        return {"ok": False, "reason": f"expert crashed: {format_failure(exc)}"}
 
 
 # --------------------------------------------------------------------------- evaluation
@@ -439,7 +461,11 @@ def evaluate(
         suffix = f"_stage{config.stage}" if config.stage is not None else ""
         return video_dir / f"{task.name}_seed{seed}{suffix}.mp4"
 
-    if config.data:
+    if config.parallel:
+        from bicoord_drake.runner.evaluate_parallel import run_parallel
+
+        rollouts, skipped, env = run_parallel(task, config, note, video_path)
+    elif config.data:
         paths = find_episodes(config.data, task.name)[: config.episodes]
         env = None
         for path in paths:

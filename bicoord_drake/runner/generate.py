@@ -8,19 +8,30 @@ planning error, a stage that did not verify, the step limit) are recorded with t
 ``manifest.json``, which is rewritten after every seed: an interrupted run resumes where it
 stopped, and no partial episode file ever appears (files are written to a temporary name and
 renamed).
+
+``generate_dataset`` does the same for several tasks in one run (``task="all"`` or a comma
+list) and writes ``<out>/dataset_<config_name>.json``. Seeds run as jobs of a backend
+(:mod:`bicoord_drake.runner.backends`: this process, local processes, or Ray). Workers encode
+a kept episode's files; by default they return them as bytes and this process writes them
+(no shared file system needed); local workers, and Ray workers with ``shared_fs``, write them
+under ``<task dir>/.staging/`` and this process renames them into place. Only this process
+assigns episode indices and writes manifests, so a retried seed cannot make a duplicate.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import re
+import shutil
+import socket
+import tempfile
 import time
 import traceback
 from collections.abc import Callable
-from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
-from multiprocessing import get_context
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -34,22 +45,30 @@ from bicoord_drake.config import (
     parse_resolution,
 )
 from bicoord_drake.data.episode import (
+    SCHEMA_VERSION,
     EpisodeEntry,
     EpisodeLayout,
     EpisodeMeta,
     EpisodeRecorder,
     Manifest,
+    atomic_path,
+    package_version,
     read_manifest,
     save_episode,
+    write_json,
     write_manifest,
 )
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.runner.backends import WorkerLost, make_backend, quiet_worker
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import build_station
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.tasks import get_task
 from bicoord_drake.tasks.base import Task, WorldView
+
+RUN_ONLY_FIELDS = {"workers", "backend", "ray_address", "shared_fs", "verbose"}
+"""Settings of how a run executes, not of the data (left out of the episode files)."""
 
 
 class GenerateConfig(BaseModel):
@@ -68,7 +87,13 @@ class GenerateConfig(BaseModel):
     config_name: str = Field("default", pattern=r"^[A-Za-z0-9_.-]+$")
     max_tries: int = Field(0, ge=0, description="give up after this many seeds (0: 5x episodes)")
     video: bool = True
-    workers: int = Field(1, ge=1, le=64, description="seeds run in parallel processes")
+    workers: int = Field(
+        0, ge=0, le=100_000, description="seeds in flight (0: 1 locally, every CPU on Ray)"
+    )
+    backend: Literal["local", "ray"] = "local"
+    ray_address: str | None = Field(None, description="join this Ray cluster (auto, HOST:PORT)")
+    shared_fs: bool = Field(False, description="Ray workers write files to out themselves")
+    verbose: bool = Field(False, description="workers' Drake and Ray logs on the terminal")
 
     @field_validator("resolution")
     @classmethod
@@ -86,10 +111,21 @@ class GenerateConfig(BaseModel):
         check_seed_range(self.seed, self.max_tries or 5 * self.episodes)
         return self
 
+    @model_validator(mode="after")
+    def _ray_only(self) -> GenerateConfig:
+        if self.backend != "ray" and (self.ray_address or self.shared_fs):
+            field = "ray_address" if self.ray_address else "shared_fs"
+            raise ValueError(f"{field} is a setting of the ray backend: add backend='ray'")
+        return self
+
     def station_config(self) -> StationConfig:
         width, height = parse_resolution(self.resolution)
         cameras = CameraConfig(width=width, height=height, depth=self.depth)
         return StationConfig(control_rate=self.fps, render=self.render, cameras=cameras)
+
+    def for_task(self, name: str) -> GenerateConfig:
+        """This run's settings for one of its tasks."""
+        return self.model_copy(update={"task": name})
 
     def data_settings(self) -> dict:
         """The settings that shape the data: a resumed run must match them."""
@@ -173,7 +209,7 @@ def _since(t0: float, t_build: float) -> dict[str, float]:
 
 @dataclass
 class GenerateSummary:
-    """The outcome of a run (also what the CLI prints)."""
+    """The outcome of one task's run (also what the CLI prints)."""
 
     root: Path
     kept: int
@@ -182,140 +218,345 @@ class GenerateSummary:
     mean_length: float | None
     seconds_per_episode: float | None
     metrics_table: str | None
+    target: int = 0
+
+
+@dataclass
+class DatasetSummary:
+    """The outcome of a run over one or more tasks."""
+
+    tasks: dict[str, GenerateSummary]
+    manifest: Path
+    backend: str
+    seconds: float
+
+    @property
+    def complete(self) -> bool:
+        return all(s.kept >= s.target for s in self.tasks.values())
+
+
+@dataclass
+class RunProgress:
+    """What the progress callback gets after every finished seed."""
+
+    counts: dict[str, tuple[int, int, int]]  # task -> (kept, tried, target)
+    message: str
+
+    @property
+    def kept(self) -> int:
+        return sum(min(k, t) for k, _, t in self.counts.values())
+
+    @property
+    def target(self) -> int:
+        return sum(t for _, _, t in self.counts.values())
+
+
+def resolve_tasks(spec: str) -> list[str]:
+    """``all``, one task name or a comma-separated list -> task names (unknown names are a
+    ValueError that lists the valid ones)."""
+    from bicoord_drake.tasks import list_tasks
+
+    valid = list_tasks()
+    if spec.strip() == "all":
+        return list(valid)
+    names = [n.strip() for n in spec.split(",") if n.strip()]
+    unknown = [n for n in names if n not in valid]
+    if unknown or not names:
+        raise ValueError(
+            f"unknown task {', '.join(map(repr, unknown)) or repr(spec)}; "
+            f"tasks: {', '.join(valid)} (or all)"
+        )
+    return list(dict.fromkeys(names))
 
 
 def generate(
-    config: GenerateConfig, progress: Callable[[int, int, int, str], None] | None = None
+    config: GenerateConfig, progress: Callable[[RunProgress], None] | None = None
 ) -> GenerateSummary:
-    """Produce `config.episodes` verified episodes (resuming a previous run in the same
-    directory). `progress(kept, tried, target, message)` is called after every seed.
+    """Produce `config.episodes` verified episodes of the one task `config.task` (resuming a
+    previous run in the same directory); see :func:`generate_dataset`."""
+    names = resolve_tasks(config.task)
+    if len(names) != 1:
+        raise ValueError(f"generate() makes one task, got {names}: use generate_dataset()")
+    return generate_dataset(config, progress).tasks[names[0]]
 
-    With ``config.workers > 1`` seeds run in a pool of processes; this process alone assigns
-    episode indices (in the order episodes finish), writes files and the manifest."""
-    task = get_task(config.task)
-    layout = EpisodeLayout(Path(config.out), task.name, config.config_name)
-    layout.make_dirs()
-    manifest = _open_manifest(layout, config)
-    station_config = config.station_config()
-    max_tries = config.max_tries or 5 * config.episodes
-    tried_seeds = {e.seed for e in manifest.episodes}
-    next_seed = max(tried_seeds) + 1 if tried_seeds else config.seed
+
+def generate_dataset(
+    config: GenerateConfig, progress: Callable[[RunProgress], None] | None = None
+) -> DatasetSummary:
+    """Produce `config.episodes` verified episodes of every task `config.task` names (``all``,
+    a name or a comma list), resuming previous runs in the same directories.
+
+    Seeds run as jobs of the configured backend (:mod:`bicoord_drake.runner.backends`). This
+    process alone assigns episode indices (in the order episodes finish), places the files and
+    writes each task's ``manifest.json`` and the run's ``dataset_<config_name>.json``.
+    `progress` is called once at the start and after every finished seed."""
+    names = resolve_tasks(config.task)
+    dataset = _DatasetManifest(config)  # checks the settings before any directory is made
+    runs = [_TaskRun(config.for_task(name)) for name in names]
     started = time.perf_counter()
-    pool = _pool(config.workers)
-    pending: dict[Future, int] = {}
-    try:
+    pending: dict[Any, tuple[_TaskRun, int]] = {}
+    with make_backend(config.backend, config.workers, config.ray_address, config.verbose) as pool:
+        dataset.backend = pool.describe()
+
+        def report(message: str) -> None:
+            if progress:
+                counts = {r.name: (r.kept, len(r.manifest.episodes), r.target) for r in runs}
+                progress(RunProgress(counts, message))
+
+        report(f"started on {dataset.backend}")
         while True:
-            kept, tried = _kept(manifest, layout), len(manifest.episodes)
-            while (
-                len(pending) < config.workers
-                and kept + len(pending) < config.episodes
-                and tried + len(pending) < max_tries
-                and next_seed < SEED_LIMIT
-            ):
-                pending[
-                    pool.submit(_run_seed, task.name, next_seed, station_config, config.depth)
-                ] = next_seed
-                next_seed += 1
+            while len(pending) < pool.slots and (run := _neediest(runs)) is not None:
+                seed = run.take_seed()
+                job = pool.submit(produce_episode, run.config, seed, run.staging)
+                pending[job] = (run, seed)
             if not pending:
                 break
-            done = next(as_completed(pending))
-            seed = pending.pop(done)
-            _record(done.result(), seed, task, layout, manifest, config, station_config)
-            if progress:
-                last = manifest.episodes[-1]
-                message = f"seed {seed}: " + ("kept" if last.success else last.reason or "")
-                progress(_kept(manifest, layout), len(manifest.episodes), config.episodes, message)
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
-    return _summary(layout, manifest, time.perf_counter() - started)
+            job = pool.wait(list(pending))
+            run, seed = pending.pop(job)
+            try:
+                outcome = pool.result(job)
+            except WorkerLost as exc:
+                outcome = SeedOutcome(run.name, seed, False, f"{WORKER_LOST}: {exc}")
+            run.record(outcome)
+            dataset.write(runs)
+            report(f"{run.name} seed {seed}: " + ("kept" if outcome.success else outcome.reason))
+    dataset.write(runs)
+    summaries = {r.name: r.summary() for r in runs}
+    return DatasetSummary(summaries, dataset.path, dataset.backend, time.perf_counter() - started)
 
 
-def _run_seed(
-    task_name: str, seed: int, station_config: StationConfig, depth: bool
-) -> EpisodeResult:
-    """One seed, in a worker process (or inline): an unexpected error of the seed (a bug in an
-    expert, a simulator fault) is that seed's failure with its reason, not the run's end."""
+WORKER_LOST = "worker_lost"
+"""Reason of a seed whose worker process died on every try; the next run tries it again."""
+
+EPISODE_FILES = ("instructions", "stages", "video", "episode")
+"""An episode's files in the order they are placed: the HDF5 file last, so its presence means
+a complete episode."""
+
+
+@dataclass
+class SeedOutcome:
+    """What a worker returns for one seed: the verdict and, for a kept episode, its files as
+    bytes (`files`, the default) or as paths already written on a shared file system
+    (`staged`)."""
+
+    task: str
+    seed: int
+    success: bool
+    reason: str | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+    frames: int | None = None
+    worker: str | None = None
+    files: dict[str, bytes] | None = None
+    staged: dict[str, str] | None = None
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of episode files carried back to the driver."""
+        return sum(len(b) for b in (self.files or {}).values())
+
+
+def produce_episode(config: GenerateConfig, seed: int, staging: str | None) -> SeedOutcome:
+    """One seed, in a worker: run the expert in physics; for a success, encode the episode's
+    files (HDF5, MP4, sidecars) and return them as bytes, or write them under ``staging``
+    (a directory on a shared file system) and return their paths."""
+    quiet_worker(config.verbose)
+    task = get_task(config.task)
+    station_config = config.station_config()
     try:
-        return run_expert(get_task(task_name), seed, station_config, depth=depth)
+        result = run_expert(task, seed, station_config, depth=config.depth)
     except Exception as exc:  # noqa: BLE001 - recorded in the manifest with the traceback's tail
-        return EpisodeResult(seed, False, f"crashed: {format_failure(exc)}")
+        result = EpisodeResult(seed, False, f"crashed: {format_failure(exc)}")
+    outcome = SeedOutcome(
+        task.name,
+        seed,
+        result.success,
+        result.reason,
+        timings=dict(result.timings),
+        worker=f"{socket.gethostname()}:{os.getpid()}",
+    )
+    if not result.success:
+        return outcome
+    t_encode = time.perf_counter()
+    outcome.frames = len(result.recorder)
+    if staging is not None:
+        layout = EpisodeLayout(Path(staging), f"seed{seed}", ".")
+        paths = _save(result, task, config, station_config, layout)
+        outcome.staged = {kind: str(path) for kind, path in paths.items()}
+    else:
+        with tempfile.TemporaryDirectory(prefix="bicoord-episode-") as tmp:
+            paths = _save(result, task, config, station_config, EpisodeLayout(Path(tmp), "e", "."))
+            outcome.files = {kind: path.read_bytes() for kind, path in paths.items()}
+    outcome.timings["encode"] = round(time.perf_counter() - t_encode, 3)
+    return outcome
 
 
-def _record(
+def _save(
     result: EpisodeResult,
-    seed: int,
     task: Task,
-    layout: EpisodeLayout,
-    manifest: Manifest,
     config: GenerateConfig,
     station_config: StationConfig,
-) -> None:
-    """Write a kept episode's files, then the manifest entry of this seed."""
-    entry = EpisodeEntry(
-        seed=seed, success=result.success, reason=result.reason, timings=result.timings
+    layout: EpisodeLayout,
+) -> dict[str, Path]:
+    meta = EpisodeMeta(
+        task=task.name,
+        seed=result.seed,
+        instruction=result.instruction,
+        embodiment=station_config.embodiment,
+        success=True,
+        object_count=task.object_count(result.scene),
+        config=config.model_dump(exclude=RUN_ONLY_FIELDS),
+        scene=result.scene,
     )
-    if result.success:
-        index = _kept(manifest, layout)
-        t_write = time.perf_counter()
-        meta = EpisodeMeta(
-            task=task.name,
-            seed=seed,
-            instruction=result.instruction,
-            embodiment=station_config.embodiment,
-            success=True,
-            object_count=task.object_count(result.scene),
-            config=config.model_dump(),
-            scene=result.scene,
+    return save_episode(
+        layout,
+        0,
+        result.recorder,
+        result.rows,
+        meta,
+        instructions_seen=task.instructions("seen"),
+        instructions_unseen=task.instructions("unseen"),
+        video=config.video and config.render,
+    )
+
+
+class _TaskRun:
+    """One task's directory, manifest and seed bookkeeping during a run (driver side)."""
+
+    def __init__(self, config: GenerateConfig) -> None:
+        self.config = config
+        self.name = config.task
+        self.target = config.episodes
+        self.layout = EpisodeLayout(Path(config.out), config.task, config.config_name)
+        self.layout.make_dirs()
+        self.manifest = _open_manifest(self.layout, config)
+        stage_root = self.layout.root / ".staging"
+        shutil.rmtree(stage_root, ignore_errors=True)  # left by an interrupted run
+        self.staging = str(stage_root.resolve()) if _stages_files(config) else None
+        self.max_tries = config.max_tries or 5 * config.episodes
+        self.pending: set[int] = set()
+        self._next = config.seed
+
+    @property
+    def kept(self) -> int:
+        return _kept(self.manifest, self.layout)
+
+    def needs(self) -> bool:
+        tried = len(self.manifest.episodes)
+        busy = len(self.pending)
+        return (
+            self.kept + busy < self.target
+            and tried + busy < self.max_tries
+            and self._next < SEED_LIMIT
         )
-        save_episode(
-            layout,
-            index,
-            result.recorder,
-            result.rows,
-            meta,
-            instructions_seen=task.instructions("seen"),
-            instructions_unseen=task.instructions("unseen"),
-            video=config.video and config.render,
+
+    def take_seed(self) -> int:
+        """The lowest seed from ``config.seed`` up that was neither tried nor is running."""
+        taken = {e.seed for e in self.manifest.episodes} | self.pending
+        while self._next in taken:
+            self._next += 1
+        self.pending.add(self._next)
+        return self._next
+
+    def record(self, outcome: SeedOutcome) -> None:
+        """Place a kept episode's files under the next index, then the seed's manifest entry."""
+        self.pending.discard(outcome.seed)
+        entry = EpisodeEntry(
+            seed=outcome.seed,
+            success=outcome.success,
+            reason=outcome.reason,
+            timings=outcome.timings,
+            worker=outcome.worker,
         )
-        entry.index, entry.frames = index, len(result.recorder)
-        entry.timings["write"] = round(time.perf_counter() - t_write, 3)
-    manifest.episodes.append(entry)
-    manifest.timings["total"] = round(
-        manifest.timings.get("total", 0.0) + sum(entry.timings.values()), 3
-    )
-    write_manifest(layout.root, manifest)
+        if outcome.success:
+            index = self.kept
+            t_write = time.perf_counter()
+            _place_files(outcome, self.layout, index)
+            entry.index, entry.frames = index, outcome.frames
+            entry.timings["write"] = round(time.perf_counter() - t_write, 3)
+        self.manifest.episodes.append(entry)
+        self.manifest.timings["total"] = round(
+            self.manifest.timings.get("total", 0.0) + sum(entry.timings.values()), 3
+        )
+        write_manifest(self.layout.root, self.manifest)
+
+    def summary(self) -> GenerateSummary:
+        summary = _summary(self.layout, self.manifest)
+        summary.target = self.target
+        return summary
 
 
-class _InlinePool:
-    """The one-worker 'pool': runs each seed in this process when it is submitted."""
-
-    def submit(self, fn, *args) -> Future:
-        future: Future = Future()
-        try:
-            future.set_result(fn(*args))
-        except BaseException as exc:  # noqa: BLE001 - re-raised by future.result()
-            future.set_exception(exc)
-        return future
-
-    def shutdown(self, wait: bool = True, cancel_futures: bool = False) -> None:
-        pass
+def _stages_files(config: GenerateConfig) -> bool:
+    """Whether workers write episode files themselves (local processes share this disk; Ray
+    workers do only when told the output is on a shared file system)."""
+    return config.backend == "local" or config.shared_fs
 
 
-def _pool(workers: int):
-    if workers <= 1:
-        return _InlinePool()
-    threads = str(max(1, (os.cpu_count() or 1) // workers))
-    return ProcessPoolExecutor(
-        max_workers=workers,
-        mp_context=get_context("spawn"),
-        initializer=_limit_threads,
-        initargs=(threads,),
-    )
+def _neediest(runs: list[_TaskRun]) -> _TaskRun | None:
+    """The task furthest from its target that still needs seeds (tasks progress together)."""
+    open_runs = [r for r in runs if r.needs()]
+    if not open_runs:
+        return None
+    return min(open_runs, key=lambda r: (r.kept + len(r.pending)) / r.target)
 
 
-def _limit_threads(threads: str) -> None:
-    # Mesa's software renderer otherwise starts one thread per core in every worker.
-    os.environ["LP_NUM_THREADS"] = threads
+def _place_files(outcome: SeedOutcome, layout: EpisodeLayout, index: int) -> None:
+    """Write (bytes) or move (staged paths) a kept episode's files to their final names."""
+    for kind in EPISODE_FILES:
+        final = getattr(layout, kind)(index)
+        if outcome.files is not None:
+            if kind in outcome.files:
+                with atomic_path(final) as tmp:
+                    tmp.write_bytes(outcome.files[kind])
+        elif outcome.staged is not None and kind in outcome.staged:
+            os.replace(outcome.staged[kind], final)
+    if outcome.staged:
+        shutil.rmtree(Path(outcome.staged["episode"]).parents[1], ignore_errors=True)
+
+
+class _DatasetManifest:
+    """``<out>/dataset_<config_name>.json``: the run's tasks, settings and per-task counts."""
+
+    def __init__(self, config: GenerateConfig) -> None:
+        self.path = Path(config.out) / f"dataset_{config.config_name}.json"
+        self.config_name = config.config_name
+        self.settings = {k: v for k, v in config.data_settings().items() if k != "task"}
+        self.backend = ""
+        self.tasks: dict[str, Any] = {}
+        if self.path.exists():
+            try:
+                old = json.loads(self.path.read_text(encoding="utf-8"))
+            except ValueError as exc:
+                raise ValueError(f"{self.path}: invalid dataset manifest ({exc})") from None
+            if old.get("settings") != self.settings:
+                raise ValueError(
+                    f"{self.path} describes data generated with different settings "
+                    f"{old.get('settings')}; use another --out or --config-name"
+                )
+            self.tasks = dict(old.get("tasks", {}))
+        self.created = time.time()
+
+    def write(self, runs: list[_TaskRun]) -> None:
+        for r in runs:
+            self.tasks[r.name] = {
+                "directory": str(r.layout.root.relative_to(self.path.parent)),
+                "target": r.target,
+                "kept": r.kept,
+                "tried": len(r.manifest.episodes),
+                "failed": len(r.manifest.failures),
+            }
+        write_json(
+            self.path,
+            {
+                "schema_version": SCHEMA_VERSION,
+                "config_name": self.config_name,
+                "settings": self.settings,
+                "tasks": self.tasks,
+                "kept": sum(t["kept"] for t in self.tasks.values()),
+                "backend": self.backend,
+                "updated": time.time(),
+                "package_version": package_version(),
+            },
+        )
 
 
 def _open_manifest(layout: EpisodeLayout, config: GenerateConfig) -> Manifest:
@@ -329,9 +570,13 @@ def _open_manifest(layout: EpisodeLayout, config: GenerateConfig) -> Manifest:
             f"{layout.root} holds data generated with different settings {manifest.config}; "
             "use another --out or --config-name to generate with these settings"
         )
-    # An episode whose file is missing (e.g. deleted) is forgotten so its seed can be redone.
+    # An episode whose file is missing (e.g. deleted) is forgotten so its seed can be redone;
+    # so is a seed whose worker died (not the expert's verdict).
     manifest.episodes = [
-        e for e in manifest.episodes if not e.success or layout.episode(e.index).exists()
+        e
+        for e in manifest.episodes
+        if (e.success and layout.episode(e.index).exists())
+        or (not e.success and not (e.reason or "").startswith(WORKER_LOST))
     ]
     return manifest
 
@@ -340,7 +585,7 @@ def _kept(manifest: Manifest, layout: EpisodeLayout) -> int:
     return sum(1 for e in manifest.episodes if e.success)
 
 
-def _summary(layout: EpisodeLayout, manifest: Manifest, elapsed: float) -> GenerateSummary:
+def _summary(layout: EpisodeLayout, manifest: Manifest) -> GenerateSummary:
     kept = [e for e in manifest.episodes if e.success]
     table = None
     if kept:

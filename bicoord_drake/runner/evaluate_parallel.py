@@ -1,0 +1,181 @@
+"""Evaluation rollouts as backend jobs (Ray, or local processes): ``evaluate`` with
+``backend="ray"`` or ``workers > 1`` comes here.
+
+Each job is one seed (or one demonstration): the expert check when its verdict is not cached,
+then the rollout, in a worker that keeps one environment and one policy instance for the jobs it
+runs. The driver keeps the expert-check cache, writes the videos (workers return their bytes:
+no shared file system needed) and gathers the results in seed order, so the report is the one a
+sequential evaluation gives: the first ``episodes`` seeds whose expert succeeds.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from bicoord_drake.data.episode import Episode, atomic_path, read_episode
+from bicoord_drake.models.scene import Scene
+from bicoord_drake.runner.backends import make_backend, quiet_worker
+from bicoord_drake.runner.evaluate import (
+    EvaluateConfig,
+    ExpertCheck,
+    RolloutResult,
+    _make_env,
+    evaluation_seed,
+    expert_verdict,
+    find_episodes,
+    rollout,
+)
+from bicoord_drake.tasks import get_task
+from bicoord_drake.tasks.base import Task
+
+
+@dataclass
+class SceneStages:
+    """The scene and stages of the last rollout (what the report reads from an env)."""
+
+    scene: Scene
+    stages: tuple
+
+
+@dataclass
+class RolloutOutcome:
+    """A job's answer: the expert verdict if it was checked, the rollout if it ran."""
+
+    seed: int
+    verdict: dict[str, Any] | None = None
+    result: RolloutResult | None = None
+    video: bytes | None = None
+
+
+_WORKER: dict[str, Any] = {}
+_ENV_FIELDS = {"task", "policy", "resolution", "render", "depth", "action_mode", "step_limit"}
+
+
+def rollout_job(
+    config: EvaluateConfig, seed: int, episode: Episode | None, check: bool, video: bool
+) -> RolloutOutcome:
+    """In a worker: the expert check of `seed` (if asked), then one rollout of the policy."""
+    quiet_worker(config.verbose)
+    task = get_task(config.task)
+    outcome = RolloutOutcome(seed)
+    if check:
+        outcome.verdict = expert_verdict(task, seed, config.fps)
+        if not outcome.verdict["ok"]:
+            return outcome
+    fps = episode.fps if episode is not None else config.fps
+    env, policy = _worker_env(task, config, seed, fps)
+    with tempfile.TemporaryDirectory(prefix="bicoord-rollout-") as tmp:
+        path = Path(tmp) / "rollout.mp4" if video else None
+        result = rollout(
+            env,
+            policy,
+            seed=None if episode is not None else seed,
+            episode=episode,
+            stage=config.stage,
+            video=path,
+        )
+        if path is not None and path.exists():
+            outcome.video = path.read_bytes()
+    result.video = None
+    outcome.result = result
+    return outcome
+
+
+def _worker_env(task: Task, config: EvaluateConfig, seed: int, fps: float):
+    """This worker's environment and policy for `config` (made once, reused across jobs)."""
+    from bicoord_drake.policies import load_policy
+
+    key = repr((config.model_dump(include=_ENV_FIELDS), fps))
+    if _WORKER.get("key") != key:
+        _WORKER.clear()
+        _WORKER.update(
+            key=key, env=_make_env(task, config, seed, fps), policy=load_policy(config.policy)
+        )
+    return _WORKER["env"], _WORKER["policy"]
+
+
+def run_parallel(
+    task: Task,
+    config: EvaluateConfig,
+    note: Callable[[RolloutResult | None, str], None],
+    video_path: Callable[[int], Path | None],
+) -> tuple[list[RolloutResult], list[dict[str, Any]], SceneStages | None]:
+    """Rollouts and skipped seeds (both in seed order) and the last rollout's scene."""
+    episodes = _demonstrations(task, config) if config.data else None
+    check = ExpertCheck(task, config.fps) if config.expert_check and not config.data else None
+    max_tries = len(episodes) if episodes is not None else config.max_tries or 3 * config.episodes
+    # keyed by submission order (= seed order; demonstrations may share a seed)
+    done: dict[int, RolloutResult] = {}
+    skipped: dict[int, dict[str, Any]] = {}
+    scenes: dict[int, Scene | None] = {}
+    pending: dict[Any, tuple[int, int]] = {}
+    tried, seed = 0, evaluation_seed(config.seed)
+
+    def skip(order: int, seed: int, reason: str) -> None:
+        skipped[order] = {"seed": seed, "reason": reason}
+        note(None, f"seed {seed} skipped")
+
+    with make_backend(config.backend, config.workers, config.ray_address, config.verbose) as pool:
+        while True:
+            while (
+                len(pending) < pool.slots
+                and len(done) + len(pending) < config.episodes
+                and tried < max_tries
+            ):
+                order, episode = tried, episodes[tried] if episodes is not None else None
+                tried += 1
+                if episode is not None:
+                    seed = episode.seed
+                    if not episode.success:
+                        skip(order, seed, f"{episode.path}: not a success")
+                        continue
+                cached = check.lookup(seed) if check is not None else None
+                if cached is not None and not cached[0]:
+                    skip(order, seed, f"expert failed: {cached[1]}")
+                else:
+                    want_check = check is not None and cached is None
+                    video = video_path(seed) is not None
+                    job = pool.submit(rollout_job, config, seed, episode, want_check, video)
+                    pending[job] = (order, seed)
+                    scenes[order] = episode.scene if episode is not None else None
+                seed += 1
+            if not pending:
+                break
+            job = pool.wait(list(pending))
+            order, job_seed = pending.pop(job)
+            outcome: RolloutOutcome = pool.result(job)
+            if outcome.verdict is not None:
+                check.store(job_seed, outcome.verdict)
+                if not outcome.verdict["ok"]:
+                    skip(order, job_seed, f"expert failed: {outcome.verdict.get('reason')}")
+                    continue
+            result = outcome.result
+            target = video_path(job_seed)
+            if target is not None and outcome.video is not None:
+                with atomic_path(target) as tmp:
+                    tmp.write_bytes(outcome.video)
+                result.video = str(target)
+            done[order] = result
+            note(result, f"seed {job_seed}: {'success' if result.success else 'failure'}")
+    rollouts = [done[k] for k in sorted(done)]
+    info = None
+    if done:
+        last = max(done)
+        scene = scenes.get(last) or task.sample_scene(done[last].seed)
+        info = SceneStages(scene, tuple(task.stages(scene)))
+    return rollouts, [skipped[k] for k in sorted(skipped)], info
+
+
+def _demonstrations(task: Task, config: EvaluateConfig) -> list[Episode]:
+    """The demonstrations to roll out (read here: workers need no access to the files)."""
+    out = []
+    for path in find_episodes(config.data, task.name)[: config.episodes]:
+        episode = read_episode(path, images=False)
+        if config.stage is not None and config.stage >= len(episode.stages):
+            raise ValueError(f"--stage {config.stage}: {path} has {len(episode.stages)} stages")
+        out.append(episode)
+    return out
