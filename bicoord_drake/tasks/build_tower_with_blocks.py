@@ -5,13 +5,25 @@ from __future__ import annotations
 from collections.abc import Iterator
 
 import numpy as np
+from pydrake.all import RigidTransform
 
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
+from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import stack_target, table_target
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.skills import Motion, SkillContext, hold, merge, pick, place, retreat
+from bicoord_drake.planning.skills import (
+    ArmPlan,
+    Motion,
+    SkillContext,
+    hold,
+    merge,
+    move_tcp,
+    pick,
+    place,
+    retreat,
+)
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     all_of,
@@ -50,6 +62,11 @@ COLORS = {
     "purple": (0.6, 0.3, 0.75, 1.0),
     "orange": (0.95, 0.5, 0.1, 1.0),
 }
+#: Where the arm holding the small cube waits: TCP at |x|, y past the spot, z above the table.
+WAIT_AT = (0.2, 0.06, 0.16)
+#: Control steps over which a gripper lets go of a cube on the tower: a fast opening
+#: flicks a light cube sideways off its smaller support.
+RELEASE_STEPS = 12
 #: Control steps both arms hold still at the end: the tower must be seen at rest for 0.3 s.
 SETTLE_STEPS = 8
 
@@ -232,13 +249,31 @@ class BuildTowerWithBlocks(Task):
         # ---- stage 3: both pick the cube on their side at once
         plans = {mid_arm: pick(ctx, mid_arm, middle), small_arm: pick(ctx, small_arm, small)}
         yield from run(merge(ctx, plans["left"], plans["right"]))
-        # ---- stage 4: the middle cube's arm stacks it; the other holds the small cube, waits
-        yield from run(_one_arm(ctx, mid_arm, place(ctx, mid_arm, on(middle, large))))
+        # ---- stage 4: the middle cube's arm stacks it; the other carries the small cube to a
+        # waiting point on its side, clear of the tower (planned first: it leaves)
+        plans = {small_arm: _wait(ctx, small_arm, scene.draws["spot_xy"])}
+        plans[mid_arm] = place(ctx, mid_arm, on(middle, large), release_steps=RELEASE_STEPS)
+        yield from run(merge(ctx, plans["left"], plans["right"]))
         # ---- stage 5: the middle cube's arm retreats while the other stacks the small cube
-        plans = {mid_arm: retreat(ctx, mid_arm), small_arm: place(ctx, small_arm, on(small, middle))}
+        plans = {
+            mid_arm: retreat(ctx, mid_arm),
+            small_arm: place(ctx, small_arm, on(small, middle), release_steps=RELEASE_STEPS),
+        }
         yield from run(merge(ctx, plans["left"], plans["right"]))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
+
+
+def _wait(ctx: SkillContext, side: str, spot: list[float]) -> ArmPlan:
+    """Carry what `side` holds, TCP orientation unchanged, to WAIT_AT beside the tower spot on
+    its own side; where that is out of reach, stay."""
+    X = ctx.model.tcp_pose(ctx.q, side)
+    sign = 1.0 if side == "right" else -1.0
+    p = [sign * WAIT_AT[0], spot[1] + WAIT_AT[1], TABLE_TOP + WAIT_AT[2]]
+    try:
+        return move_tcp(ctx, side, RigidTransform(X.rotation(), p), label="wait")
+    except PlanningError:
+        return hold(ctx, side, 0, label="wait")
 
 
 def _one_arm(ctx: SkillContext, side: str, plan) -> Motion:
