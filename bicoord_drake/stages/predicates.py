@@ -306,6 +306,40 @@ def held_by(obj: str, side: str = "any", closed_below: float = OPEN_AT) -> Predi
     return Predicate(check, f"held_by({obj!r}, {side!r})")
 
 
+def untouched(obj: str) -> Predicate:
+    """No finger of either gripper touches `obj` (whatever the grippers are commanded to do):
+    one arm has let go of a placement while the other still holds something."""
+    return Predicate(lambda s: not s.touching(obj), f"untouched({obj!r})")
+
+
+def stacked(
+    objects: Sequence[str],
+    xy_tol: float = 0.02,
+    z_tol: float = 0.01,
+    max_tilt: float = math.radians(15),
+    support_z: float = TABLE_TOP,
+) -> Predicate:
+    """A tower of blocks, bottom first: the first of `objects` on the support
+    (:func:`on_table`), each next one resting on the one below it (:func:`on_top_of`), every
+    one lying on a face (some axis within `max_tilt` of vertical). A toppled, leaning or
+    shifted block, or one left beside the tower, breaks it."""
+    objects = tuple(objects)
+    if len(objects) < 2:
+        raise ValueError(f"stacked needs at least two objects, got {list(objects)}")
+    parts = [on_table(objects[0], z_tol, support_z)] + [
+        on_top_of(a, b, xy_tol, z_tol) for b, a in zip(objects[:-1], objects[1:], strict=False)
+    ]
+
+    def on_a_face(s: WorldState, name: str) -> bool:
+        tilts = [tilt(s, name, axis) for axis in _AXES]
+        return min(min(t, math.pi - t) for t in tilts) <= max_tilt
+
+    return Predicate(
+        lambda s: all(on_a_face(s, o) for o in objects) and all(p(s) for p in parts),
+        f"stacked({', '.join(map(repr, objects))}, xy_tol={xy_tol}, z_tol={z_tol})",
+    )
+
+
 def upright(obj: str, max_tilt: float = math.radians(15), axis: str = "z") -> Predicate:
     """The object's `axis` within `max_tilt` (rad) of vertical (either way up)."""
 

@@ -12,6 +12,7 @@ from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
 from bicoord_drake.models.scene import Scene, cube
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import stack_target
+from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import ArmPlan
 from bicoord_drake.sim.simulation import Simulation
@@ -82,6 +83,47 @@ def test_arm_plans_chain_only_where_they_meet():
     c = ArmPlan("left", np.zeros((4, 6)), np.zeros(4), events=[(1, "attach", "x")])
     chained = a.then(c)
     assert chained.num_steps == 6 and chained.events == [(3, "attach", "x")]
+
+
+def test_slow_release_ramps_the_opening_over_the_given_steps():
+    ctx = sk.SkillContext(PlanningModel(Scene(name="empty")))
+    ctx.opening["left"] = 0.0
+    fast = sk.grip(ctx, "left", 1.0)
+    ctx.opening["left"] = 0.0
+    slow = sk.grip(ctx, "left", 1.0, ramp_steps=12)
+    assert fast.num_steps == ctx.gripper_steps + 4 and slow.num_steps == 12 + 4
+    assert np.all(np.diff(slow.opening) >= 0) and slow.opening[12] == 1.0
+    assert slow.opening[6] == pytest.approx(0.5)
+    assert np.all(slow.q == slow.q[0])  # the arm keeps still
+    ctx.opening["left"] = 0.0
+    clamped = sk.grip(ctx, "left", 1.0, ramp_steps=1)  # never faster than the fingers go
+    assert clamped.num_steps == fast.num_steps
+
+
+def test_tcp_deviation_tells_a_descent_from_an_arc():
+    scene = Scene(name="one", objects=(cube("a", 0.15, -0.05),))
+    ctx = sk.SkillContext(PlanningModel(scene))
+    X = ctx.model.tcp_pose(ctx.q, "right")
+    above = sk.solve_tcp(ctx, "right", TcpTarget(X))
+    lower = RigidTransform(X.rotation(), X.translation() - [0, 0, 0.08])
+    below = sk.solve_tcp(ctx, "right", TcpTarget(lower), seed6=above)
+    assert sk.tcp_deviation(ctx, "right", above, below) < 0.01
+    swung = above.copy()
+    swung[0] += 1.6  # the waist turns: the TCP sweeps an arc between the same kind of poses
+    assert sk.tcp_deviation(ctx, "right", above, swung) > 0.04
+
+
+def test_place_lets_go_slowly_when_asked():
+    scene = Scene(name="one", objects=(cube("a", 0.15, -0.05),))
+    plans = {}
+    for steps in (None, 15):
+        ctx = sk.SkillContext(PlanningModel(scene))
+        sk.pick(ctx, "right", "a")
+        plans[steps] = sk.place(
+            ctx, "right", RigidTransform([0.1, -0.1, 0.77]), release_steps=steps
+        )
+    rising = lambda p: int(np.sum(np.diff(p.opening) > 0))  # noqa: E731
+    assert rising(plans[None]) <= 4 and rising(plans[15]) == 15
 
 
 # --------------------------------------------------------------------------------------------

@@ -71,6 +71,37 @@ def test_released_needs_open_grippers_and_no_contact():
     assert P.released("small")(state(openings=(0.5, 0.5)))
 
 
+def test_untouched_ignores_the_grippers_commands():
+    # one arm let go of `small` while the other still holds something closed
+    assert P.untouched("small")(state(openings=(1.0, 0.0), contacts={"large": {"right"}}))
+    assert not P.untouched("small")(state(openings=(1.0, 1.0), contacts={"small": {"left"}}))
+    assert not P.untouched("small")(state(openings=(0.0, 1.0), contacts={"small": {"left"}}))
+
+
+def test_stacked_is_a_tower_from_the_table_up():
+    on = state(poses={"small": SMALL_ON_LARGE})
+    assert P.stacked(["large", "small"])(on)
+    assert not P.stacked(["small", "large"])(on)  # wrong order
+    assert not P.stacked(["large", "small"])(state())  # side by side on the table
+    beside = state(poses={"small": SMALL_ON_LARGE + [0.035, 0, 0, 0, 0, 0, 0]})
+    assert not P.stacked(["large", "small"])(beside)
+    raised = pose(0.1, 0.0, TABLE_TOP + 0.03 + 0.04)  # the pair held 4 cm above the table
+    lifted = state(poses={"large": raised, "small": raised + [0, 0, 0.05, 0, 0, 0, 0]})
+    assert P.on_top_of("small", "large")(lifted)
+    assert not P.stacked(["large", "small"])(lifted)
+    # the top block leaning on an edge: its lowest corner on the lower block's top
+    q = quat_about("y", math.radians(40))
+    corner = 0.02 * (math.cos(math.radians(40)) + math.sin(math.radians(40)))
+    toppled = state(poses={"small": pose(0.1, 0.0, TABLE_TOP + 0.06 + corner, q)})
+    assert P.on_top_of("small", "large")(toppled)
+    assert not P.stacked(["large", "small"])(toppled)
+    with pytest.raises(ValueError):
+        P.stacked(["large"])
+    # a block turned onto another face still lies flat
+    rolled = state(poses={"small": pose(0.1, 0.0, TABLE_TOP + 0.08, quat_about("x", math.pi / 2))})
+    assert P.stacked(["large", "small"])(rolled)
+
+
 def test_held_by_side():
     held = state(openings=(0.0, 1.0), contacts={"small": {"left"}})
     assert P.held_by("small", "left")(held)

@@ -15,7 +15,8 @@ module                    skills
 :mod:`.core`              :class:`ArmPlan`, :class:`Motion`, :class:`SkillContext` (``sync``,
                           ``refresh_grasps``, ``transaction``), :func:`merge`, :func:`hold`
 :mod:`.arm`               :func:`move`, :func:`move_tcp`, :func:`solve_tcp`, :func:`grip`,
-                          :func:`lift`, :func:`retreat`
+                          :func:`lift`, :func:`retreat`,
+                          :func:`tcp_deviation`
 :mod:`.pick_place`        :func:`pick`, :func:`place`, :func:`stabilize`, :func:`release`
 :mod:`.tracking`          :func:`track` (a TCP path at every sample), :func:`push`
 :mod:`.pour`              :func:`pour` (tilt a held container about its rim and back)
@@ -36,7 +37,15 @@ reason; the two-arm skills (handover, toss) leave the context unchanged when the
 >>> for action in motion.actions(): sim.step(action)
 """
 
-from bicoord_drake.planning.skills.arm import grip, lift, move, move_tcp, retreat, solve_tcp
+from bicoord_drake.planning.skills.arm import (
+    grip,
+    lift,
+    move,
+    move_tcp,
+    retreat,
+    solve_tcp,
+    tcp_deviation,
+)
 from bicoord_drake.planning.skills.core import ArmPlan, Motion, SkillContext, hold, merge
 from bicoord_drake.planning.skills.handover import (
     ReceiverGrasps,
@@ -76,6 +85,7 @@ __all__ = [
     "retreat",
     "solve_tcp",
     "stabilize",
+    "tcp_deviation",
     "toss",
     "track",
 ]

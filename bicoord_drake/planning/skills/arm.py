@@ -55,12 +55,22 @@ def move(
 
 
 def grip(
-    ctx: SkillContext, side: str, opening: float, *, settle_steps: int = 3, label: str = "grip"
+    ctx: SkillContext,
+    side: str,
+    opening: float,
+    *,
+    settle_steps: int = 3,
+    label: str = "grip",
+    ramp_steps: int | None = None,
 ) -> ArmPlan:
-    """Open or close one gripper (arm still), then hold for `settle_steps`."""
+    """Open or close one gripper (arm still), then hold for `settle_steps`.
+
+    The command ramps over `ramp_steps` control steps (default: as fast as the fingers go);
+    a slow opening lets a squeezed light object unload gently instead of springing off."""
     start = ctx.opening[side]
-    n = ctx.gripper_steps + settle_steps
-    ramp = np.clip(np.arange(n + 1) / ctx.gripper_steps, 0, 1)
+    steps = ctx.gripper_steps if ramp_steps is None else max(int(ramp_steps), ctx.gripper_steps)
+    n = steps + settle_steps
+    ramp = np.clip(np.arange(n + 1) / steps, 0, 1)
     q6 = ctx.arm_q(side)
     ctx.opening[side] = float(opening)
     return ArmPlan(
@@ -108,6 +118,27 @@ def move_tcp(
     target = TcpTarget(X_WT, free_axis=free_axis)
     q6 = solve_tcp(ctx, side, target, ignore=ignore, clearance=clearance)
     return move(ctx, side, q6, label=label, ignore=ignore, straight=straight, clearance=clearance)
+
+
+def tcp_deviation(
+    ctx: SkillContext, side: str, q6_a: np.ndarray, q6_b: np.ndarray, samples: int = 9
+) -> float:
+    """Largest distance (m) of the TCP from the straight segment between its ends along the
+    straight joint move q6_a -> q6_b of `side`. Two IK solutions on different branches make
+    a short Cartesian move (a descent onto a grasp) sweep a wide arc instead."""
+    q = ctx.q.copy()
+    points = []
+    for s in np.linspace(0.0, 1.0, samples):
+        q[ARM_SLICES[side]] = (1 - s) * np.asarray(q6_a) + s * np.asarray(q6_b)
+        points.append(ctx.model.tcp_pose(q, side).translation())
+    a, b = points[0], points[-1]
+    d = b - a
+    length2 = float(d @ d)
+    worst = 0.0
+    for p in points[1:-1]:
+        t = 0.0 if length2 < 1e-12 else float(np.clip((p - a) @ d / length2, 0.0, 1.0))
+        worst = max(worst, float(np.linalg.norm(p - (a + t * d))))
+    return worst
 
 
 def lift(ctx: SkillContext, side: str, height: float) -> ArmPlan:

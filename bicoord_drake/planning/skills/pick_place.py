@@ -16,11 +16,14 @@ from pydrake.all import RigidTransform
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import Grasp, arm_base, grasp_candidates, place_candidates
 from bicoord_drake.planning.ik import TcpTarget
-from bicoord_drake.planning.skills.arm import grip, move, move_tcp, solve_tcp
+from bicoord_drake.planning.skills.arm import grip, move, move_tcp, solve_tcp, tcp_deviation
 from bicoord_drake.planning.skills.core import ArmPlan, SkillContext
 
 #: Grasp candidates tried per pick before giving up.
 MAX_GRASP_TRIES = 6
+#: Largest TCP deviation (m) from a straight line allowed on the straight joint moves of a
+#: pick or place (descend, lift, lower, back off).
+MAX_LINE_DEVIATION = 0.02
 
 
 def pick(
@@ -90,7 +93,19 @@ def _grasp_keyframes(ctx: SkillContext, side: str, name: str, grasp: Grasp, lift
     q_grasp = solve_tcp(ctx, side, TcpTarget(grasp.X_WG), seed6=q_pre, ignore=[name])
     X_lift = RigidTransform(grasp.X_WG.rotation(), grasp.X_WG.translation() + [0, 0, lift])
     q_lift = solve_tcp(ctx, side, TcpTarget(X_lift), seed6=q_grasp, ignore=[name])
+    _check_straight(ctx, side, (q_pre, q_grasp, q_lift), ("descend", "lift"))
     return q_pre, q_grasp, q_lift
+
+
+def _check_straight(ctx: SkillContext, side: str, qs, labels) -> None:
+    """Raise unless each straight joint move between consecutive `qs` keeps the TCP within
+    MAX_LINE_DEVIATION of a straight line (an IK branch switch sweeps an arc)."""
+    for (a, b), label in zip(zip(qs[:-1], qs[1:], strict=True), labels, strict=True):
+        dev = tcp_deviation(ctx, side, a, b)
+        if dev > MAX_LINE_DEVIATION:
+            raise PlanningError(
+                "not_straight", f"{side} {label}: the TCP leaves its line by {dev * 100:.1f} cm"
+            )
 
 
 def place(
@@ -102,11 +117,14 @@ def place(
     retreat: float = 0.06,
     ignore: Iterable[str] = (),
     opening: float = 1.0,
+    release_steps: int | None = None,
 ) -> ArmPlan:
     """Carry the held object above `X_WO_goal`, lower it there, release and back off.
 
     The object's symmetric yaws about the goal are tried, most natural first. The gripper
-    opens to `opening` (less than 1 inside a container, so the fingers miss its walls)."""
+    opens to `opening` (less than 1 inside a container, so the fingers miss its walls), over
+    `release_steps` control steps if given (a slow release for a light object set on a small
+    support, which a fast one can flick off)."""
     held = ctx.model.held.get(side)
     if held is None:
         raise PlanningError("gripper_empty", f"{side} holds nothing to place")
@@ -129,11 +147,21 @@ def place(
             )
             X_away = RigidTransform(cand.X_WG.rotation(), cand.X_WG.translation() + [0, 0, retreat])
             q_away = solve_tcp(ctx, side, TcpTarget(X_away), seed6=q_place, ignore=[held.name])
+            _check_straight(ctx, side, (q_above, q_place, q_away), ("lower", "back off"))
         except PlanningError as err:
             reasons.append(err.reason)
             continue
         return _place_moves(
-            ctx, side, held.name, cand.X_WO, q_above, q_place, q_away, ignore, opening
+            ctx,
+            side,
+            held.name,
+            cand.X_WO,
+            q_above,
+            q_place,
+            q_away,
+            ignore,
+            opening,
+            release_steps,
         )
     raise PlanningError(
         "place_failed",
@@ -143,11 +171,20 @@ def place(
 
 
 def _place_moves(
-    ctx: SkillContext, side, name, X_WO, q_above, q_place, q_away, ignore, opening=1.0
+    ctx: SkillContext,
+    side,
+    name,
+    X_WO,
+    q_above,
+    q_place,
+    q_away,
+    ignore,
+    opening=1.0,
+    release_steps=None,
 ) -> ArmPlan:
     carry = move(ctx, side, q_above, label="carry", ignore=ignore)
     lower = move(ctx, side, q_place, label="lower", ignore=ignore + [name], straight=True)
-    release = grip(ctx, side, opening, label="release")
+    release = grip(ctx, side, opening, label="release", ramp_steps=release_steps)
     ctx.model.detach(side, X_WO=X_WO)
     back = move(ctx, side, q_away, label="back off", ignore=ignore + [name], straight=True)
     plan = carry.then(lower, release, back)
