@@ -16,7 +16,8 @@ module                    skills
                           ``refresh_grasps``, ``transaction``), :func:`merge`, :func:`hold`
 :mod:`.arm`               :func:`move`, :func:`move_tcp`, :func:`solve_tcp`, :func:`grip`,
                           :func:`lift`, :func:`retreat`
-:mod:`.pick_place`        :func:`pick`, :func:`place`, :func:`stabilize`, :func:`release`
+:mod:`.pick_place`        :func:`pick`, :func:`place`, :func:`carry_above`, :func:`stabilize`,
+                          :func:`release`
 :mod:`.tracking`          :func:`track` (a TCP path at every sample), :func:`push`
 :mod:`.pour`              :func:`pour` (tilt a held container about its rim and back)
 :mod:`.handover`          :func:`handover` (mid-air, both arms arrive at once; options for the
@@ -45,7 +46,7 @@ from bicoord_drake.planning.skills.handover import (
     handover,
     meet_motion,
 )
-from bicoord_drake.planning.skills.pick_place import pick, place, release, stabilize
+from bicoord_drake.planning.skills.pick_place import carry_above, pick, place, release, stabilize
 from bicoord_drake.planning.skills.pour import pour
 from bicoord_drake.planning.skills.shapes import half_extent
 from bicoord_drake.planning.skills.toss import least_spin_velocity, toss
@@ -56,6 +57,7 @@ __all__ = [
     "Motion",
     "ReceiverGrasps",
     "SkillContext",
+    "carry_above",
     "crossing_grasps",
     "fingers_cross",
     "grip",
