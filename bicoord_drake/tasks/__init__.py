@@ -9,7 +9,13 @@ from bicoord_drake.tasks.base import Task, WorldView
 from bicoord_drake.tasks.registry import get_task, list_tasks, register_task
 
 #: Task modules imported (and so registered) with this package.
-TASK_MODULES: tuple[str, ...] = ("cook", "exchange_mics", "handover_block_with_bowls", "jigsaw")
+TASK_MODULES: tuple[str, ...] = (
+    "cook",
+    "exchange_mics",
+    "handover_block_with_bowls",
+    "jigsaw",
+    "place_plate_and_cup",
+)
 
 for _module in TASK_MODULES:
     import_module(f"{__name__}.{_module}")

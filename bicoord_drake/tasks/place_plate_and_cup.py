@@ -8,15 +8,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from dataclasses import replace
 
 import numpy as np
 from pydrake.all import RigidTransform
 
 from bicoord_drake.models.geometry import Pose
-from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
+from bicoord_drake.models.objects import BowlShape, BoxShape, CylinderShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
 from bicoord_drake.planning.errors import PlanningError
-from bicoord_drake.planning.grasps import stack_target, table_target
+from bicoord_drake.planning.grasps import (
+    Grasp,
+    arm_base,
+    cylinder_grasps,
+    stack_target,
+    table_target,
+)
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
@@ -54,13 +61,9 @@ PLATE_MASS = 0.10
 #: Hydroelastic mesh size of the plate (m): its 15 cm base is the costliest contact of the
 #: scene; 3 cm instead of the default 1 cm makes the physics ~35 % faster.
 PLATE_RESOLUTION = 0.03
-#: A cup: 7 cm across, 8 cm high, straight 12 mm wall, picked by its rim.
+#: A cup: 7 cm across, 8 cm high, straight 12 mm wall, picked across its outside at the rim.
 CUP = BowlShape(radius=0.035, base_radius=0.035, height=0.08, wall=0.012, segments=12)
 CUP_MASS = 0.08
-#: Jaw opening while a finger goes into the cup (half gap ~2.2 cm: clear of its inner wall),
-#: and when it lets go of the cup (counts as open: >= OPEN_AT; the inner pad stays in the cup).
-CUP_APPROACH_OPENING = 0.45
-CUP_RELEASE_OPENING = 0.6
 #: Target 1 (left side) and target 2 (right side), table-centred (TASKS.md: (-0.12, -0.15) and
 #: (0.15, -0.15)), each jittered by up to TARGET_JITTER; the grey squares are TARGET wide.
 TARGETS = ((-0.12, -0.15), (0.15, -0.15))
@@ -106,12 +109,12 @@ class PlacePlateAndCup(Task):
     Description: two dishes (15 cm, 3 cm high, straight 12 mm rim, 100 g) lie on the left half
     and two cups (7 cm, 8 cm high, 80 g) stand on the right half; two grey 17 cm squares mark
     the places, target 1 on the left near (-0.12, -0.15) and target 2 on the right near
-    (0.15, -0.15). The left arm lifts a plate by its rim while the right arm picks a cup by
-    its rim, both at once; the left lays the plate on target 1 while the right brings the cup
-    over it and, as soon as the plate is down, sets the cup on it. While the right sets the
-    cup, the left picks the second plate; the left carries it over target 2 while the right
-    picks the second cup; then the second place is set the same way. Layout as in TASKS.md;
-    the plates and cups start within y in [-0.04, 0.09] (within the reach of a rim grasp).
+    (0.15, -0.15). The left arm lifts a plate by its rim while the right arm picks a cup from
+    above, across its outside, both at once; the left lays the plate on target 1 while the
+    right brings the cup over it and, as soon as the plate is down, sets the cup on it. While
+    the right sets the cup, the left picks the second plate; the left carries it over target 2
+    while the right picks the second cup; then the second place is set the same way. Layout as
+    in TASKS.md; the plates and cups start within y in [-0.04, 0.09] (within reach).
 
     Randomization: plate positions (x in [-0.32, -0.10], y in [-0.02, 0.09], >= 17 cm apart)
     and cup positions (x in [0.08, 0.32], y in [-0.04, 0.09], >= 10 cm apart and clear of
@@ -190,7 +193,7 @@ class PlacePlateAndCup(Task):
             Stage(
                 "pick a plate and a cup",
                 "pick a plate by its rim",
-                "pick a cup by its rim",
+                "pick a cup from above",
                 0.0,
                 _plate_and_cup_lifted(),
                 "transient",
@@ -256,7 +259,7 @@ class PlacePlateAndCup(Task):
             raise PlanningError("hover_failed", f"right cannot hold its cup near {xy} ({reasons})")
 
         def pick_cup(name: str):
-            return pick(ctx, "right", name, kinds=["rim"], approach_opening=CUP_APPROACH_OPENING)
+            return pick(ctx, "right", name, grasps=cup_grasps(ctx, "right", name))
 
         # ---- stage 1: left picks plate 1 by its rim, right picks cup 1
         left = pick(ctx, "left", plates[0], kinds=["rim"])
@@ -270,7 +273,7 @@ class PlacePlateAndCup(Task):
         # (left is planned first: it leaves the plate, so the cup's descent plans around
         # where it goes; merge() delays the cup while the two would meet)
         left = pick(ctx, "left", plates[1], kinds=["rim"])
-        right = place(ctx, "right", cup_goal(plates[0]), opening=CUP_RELEASE_OPENING)
+        right = place(ctx, "right", cup_goal(plates[0]))
         yield from run(merge(ctx, left, right))
         # ---- stage 3: left carries plate 2 over target 2 while right picks cup 2
         # (right is planned first: it leaves plate 1 for its own side, out of the left arm's
@@ -283,10 +286,25 @@ class PlacePlateAndCup(Task):
         right = hover(targets[1])
         yield from run(merge(ctx, left, right))
         left = retreat(ctx, "left")
-        right = place(ctx, "right", cup_goal(plates[1]), opening=CUP_RELEASE_OPENING)
+        right = place(ctx, "right", cup_goal(plates[1]))
         yield from run(merge(ctx, left, right))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
+
+
+# -------------------------------------------------------------------- expert helpers
+def cup_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
+    """Top-down grasps of an upright cup across its outside, pads on the outer wall from the
+    rim down (a rim grasp puts a finger inside the cup, which caught the inner wall and
+    lifted the cup again when backing off after the release), best first."""
+    X_WO = ctx.model.object_pose(name)
+    X_WC = X_WO @ RigidTransform([0.0, 0.0, CUP.height / 2])  # the solid's centre
+    solid = CylinderShape(radius=CUP.radius, length=CUP.height)
+    gripper = ctx.model.embodiment.arm.gripper
+    base = arm_base(ctx.model.embodiment, side)
+    grasps = cylinder_grasps(X_WC, solid, gripper, base=base, kinds=("top",))
+    X_OW = X_WO.inverse()
+    return [replace(g, X_OG=X_OW @ g.X_WG) for g in grasps]
 
 
 # -------------------------------------------------------------------- predicates
