@@ -20,11 +20,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from bicoord_drake.runner.backends import add_backend_arguments
 
 
 def main(argv: list[str] | None = None) -> int:
+    started = time.perf_counter()
     parser = argparse.ArgumentParser(
         description=__doc__.split("\n")[1],
         epilog=__doc__.split("\n", 2)[2],
@@ -158,6 +160,7 @@ def main(argv: list[str] | None = None) -> int:
             print("\n" + summary.metrics_table)
     if len(result.tasks) > 1:
         print(f"\n{result.manifest}: {len(result.tasks)} tasks, {result.seconds:.0f} s")
+    print("\n" + result.throughput.describe(time.perf_counter() - started))
     return 0 if result.complete else 1
 
 
