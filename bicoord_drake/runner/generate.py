@@ -86,6 +86,7 @@ class GenerateConfig(BaseModel):
     fps: float = Field(15.0, gt=0, le=100, description="control and recording rate, Hz")
     depth: bool = False
     render: bool = True
+    randomize: bool = Field(False, description="randomized textures, lights, camera jitter")
     config_name: str = Field("default", pattern=r"^[A-Za-z0-9_.-]+$")
     max_tries: int = Field(0, ge=0, description="give up after this many seeds (0: 5x episodes)")
     video: bool = True
@@ -131,7 +132,10 @@ class GenerateConfig(BaseModel):
 
     def data_settings(self) -> dict:
         """The settings that shape the data: a resumed run must match them."""
-        return self.model_dump(include={"task", "resolution", "fps", "depth", "render"})
+        settings = self.model_dump(include={"task", "resolution", "fps", "depth", "render"})
+        if self.randomize:  # absent when off: directories of earlier runs still resume
+            settings["randomize"] = True
+        return settings
 
 
 @dataclass
@@ -149,7 +153,11 @@ class EpisodeResult:
 
 
 def run_expert(
-    task: Task, seed: int, station_config: StationConfig, depth: bool = False
+    task: Task,
+    seed: int,
+    station_config: StationConfig,
+    depth: bool = False,
+    randomize: bool = False,
 ) -> EpisodeResult:
     """Run `task`'s expert for `seed` in physics and verify every stage.
 
@@ -157,7 +165,8 @@ def run_expert(
     from its recorded plant states (:class:`~bicoord_drake.sim.frame_renderer.FrameRenderer`),
     when `station_config` asks for cameras: a failed seed costs no rendering. The result's
     ``timings`` split the wall time into build, planning, physics, monitor, record, render and
-    jpeg seconds.
+    jpeg seconds. With `randomize`, the scene gets its seed's randomized appearance from the
+    seen split (:meth:`~bicoord_drake.models.scene.Scene.randomized`).
 
     Any failure of the seed (planning, a stage not verified, an annotation that cannot be made)
     is returned with its reason; a ValueError only for a seed outside [0, 2**32)."""
@@ -165,6 +174,8 @@ def run_expert(
     clock = Stopwatch()
     with clock("build"):
         scene = task.sample_scene(seed)
+        if randomize:
+            scene = scene.randomized("seen")
         sim = Simulation(build_station(scene, station_config.model_copy(update={"render": False})))
         monitor = StageMonitor(task.stages(scene))
         recorder = EpisodeRecorder(
@@ -425,7 +436,9 @@ def produce_episode(config: GenerateConfig, seed: int, staging: str | None) -> S
     task = get_task(config.task)
     station_config = config.station_config()
     try:
-        result = run_expert(task, seed, station_config, depth=config.depth)
+        result = run_expert(
+            task, seed, station_config, depth=config.depth, randomize=config.randomize
+        )
     except Exception as exc:  # noqa: BLE001 - recorded in the manifest with the traceback's tail
         result = EpisodeResult(seed, False, f"crashed: {format_failure(exc)}")
     outcome = SeedOutcome(
