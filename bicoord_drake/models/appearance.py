@@ -157,9 +157,9 @@ def texture_image(texture: Texture, size: int = TEXTURE_SIZE) -> np.ndarray:
     v, u = np.mgrid[0:size, 0:size] / size
     f = texture.scale
     if texture.kind == "wood":
-        noise = _smooth_noise(rng, size, cells=4)
-        rings = np.sin(2 * np.pi * (f * 14 * (u + 0.25 * noise) + 2 * _smooth_noise(rng, size, 8)))
-        t = 0.5 + 0.35 * rings + 0.15 * _smooth_noise(rng, size, cells=32)
+        warp = 0.05 * _smooth_noise(rng, size, cells=4) + 0.01 * _smooth_noise(rng, size, 16)
+        grain = np.sin(2 * np.pi * f * 12 * (u + warp))
+        t = 0.5 + 0.3 * grain + 0.2 * _smooth_noise(rng, size, cells=64)
     elif texture.kind == "stone":
         t = sum(
             _smooth_noise(rng, size, cells=int(c * f) or 1) / k
