@@ -78,6 +78,7 @@ class CameraConfig(BaseModel):
     head_fov_y_deg: float = Field(37.0, gt=5, lt=150)
     wrist_fov_y_deg: float = Field(72.0, gt=5, lt=150)
     depth_range: tuple[float, float] = (0.02, 3.0)
+    shadows: bool = Field(False, description="directional lights cast shadows (costs time)")
 
     @field_validator("names")
     @classmethod

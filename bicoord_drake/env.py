@@ -83,6 +83,7 @@ def make_env(
     render: bool = True,
     fps: float = 15.0,
     split: Split = "unseen",
+    randomize: bool = False,
     step_limit: int | None = None,
     data: str | Path | None = None,
 ) -> Env:
@@ -90,7 +91,9 @@ def make_env(
 
     `resolution` is ``"WxH"`` or ``(W, H)``; `render=False` drops the cameras (states only, much
     faster); `fps` is the control rate; `step_limit` overrides the task's (TASKS.md); `data` is
-    where ``reset(seed, stage=k)`` finds the demonstration of `seed`.
+    where ``reset(seed, stage=k)`` finds the demonstration of `seed`; `randomize` gives every
+    scene its seed's randomized appearance from `split`'s textures (a demonstration's scene
+    keeps its own).
     """
     if action_mode not in ACTION_SIZES:
         raise ValueError(f"action_mode must be 'qpos' or 'endpose', got {action_mode!r}")
@@ -107,6 +110,7 @@ def make_env(
         seed=seed,
         action_mode=action_mode,
         split=split,
+        randomize=randomize,
         step_limit=step_limit,
         data=data,
     )
@@ -129,6 +133,7 @@ class Env:
         seed: int = EVAL_SEED_START,
         action_mode: ActionMode = "qpos",
         split: Split = "unseen",
+        randomize: bool = False,
         step_limit: int | None = None,
         data: str | Path | None = None,
     ) -> None:
@@ -140,6 +145,7 @@ class Env:
         self.config = config
         self.action_mode: ActionMode = action_mode
         self.split: Split = split
+        self.randomize = randomize
         self.step_limit = int(step_limit or task.step_limit)
         self.seed: int | None = None
         self.scene: Scene | None = None
@@ -166,7 +172,9 @@ class Env:
 
     def _build(self, seed: int, scene: Scene | None) -> None:
         seed = check_seed(seed)
-        scene = self.task.sample_scene(seed) if scene is None else scene
+        if scene is None:
+            scene = self.task.sample_scene(seed)
+            scene = scene.randomized(self.split) if self.randomize else scene
         if self.sim is None or scene != self.scene:
             self.sim = Simulation(build_station(scene, self.config))
         self.seed, self.scene = seed, scene

@@ -59,6 +59,17 @@ def main(argv: list[str] | None = None) -> int:
         "--no-render", action="store_true", help="no cameras (policies that need no images)"
     )
     parser.add_argument(
+        "--randomize",
+        action="store_true",
+        help="randomized textures, lights and head-camera pose (from --split's texture set)",
+    )
+    parser.add_argument(
+        "--split",
+        default="unseen",
+        choices=("seen", "unseen"),
+        help="instructions and textures of this split (default: unseen)",
+    )
+    parser.add_argument(
         "--action-mode", default="qpos", choices=("qpos", "endpose"), help="what act() returns"
     )
     parser.add_argument("--fps", type=float, default=15.0, help="control rate (--data: the file's)")
@@ -108,6 +119,8 @@ def main(argv: list[str] | None = None) -> int:
             resolution=args.resolution,
             render=not args.no_render,
             depth=args.depth,
+            randomize=args.randomize,
+            split=args.split,
             action_mode=args.action_mode,
             fps=args.fps,
             step_limit=args.step_limit,

@@ -6,6 +6,7 @@ Examples:
     python scripts/generate.py --task jigsaw --episodes 3 --out data --seed 0
     python scripts/generate.py --task jigsaw --resolution 640x480 --depth
     python scripts/generate.py --task jigsaw --no-render           # states and actions only
+    python scripts/generate.py --task jigsaw --randomize       # into <out>/jigsaw/randomized
     python scripts/generate.py --task all --episodes 50 --workers 2  # every task, 2 processes
     python scripts/generate.py --task jigsaw,cook --backend ray      # a local Ray instance
     python scripts/generate.py --task all --backend ray --ray-address auto   # join a cluster
@@ -20,11 +21,13 @@ from __future__ import annotations
 
 import argparse
 import sys
+import time
 
 from bicoord_drake.runner.backends import add_backend_arguments
 
 
 def main(argv: list[str] | None = None) -> int:
+    started = time.perf_counter()
     parser = argparse.ArgumentParser(
         description=__doc__.split("\n")[1],
         epilog=__doc__.split("\n", 2)[2],
@@ -49,9 +52,14 @@ def main(argv: list[str] | None = None) -> int:
         help="no cameras: record states and actions only (much faster)",
     )
     parser.add_argument(
+        "--randomize",
+        action="store_true",
+        help="randomized table and floor textures (seen set), lights and head-camera pose",
+    )
+    parser.add_argument(
         "--config-name",
-        default="default",
-        help="name of the settings directory under <out>/<task>/",
+        help="name of the settings directory under <out>/<task>/ "
+        "(default: default, or randomized with --randomize)",
     )
     parser.add_argument(
         "--max-tries",
@@ -104,7 +112,8 @@ def main(argv: list[str] | None = None) -> int:
             fps=args.fps,
             depth=args.depth,
             render=not args.no_render,
-            config_name=args.config_name,
+            randomize=args.randomize,
+            config_name=args.config_name or ("randomized" if args.randomize else "default"),
             max_tries=args.max_tries,
             workers=args.workers,
             backend=args.backend,
@@ -158,6 +167,7 @@ def main(argv: list[str] | None = None) -> int:
             print("\n" + summary.metrics_table)
     if len(result.tasks) > 1:
         print(f"\n{result.manifest}: {len(result.tasks)} tasks, {result.seconds:.0f} s")
+    print("\n" + result.throughput.describe(time.perf_counter() - started))
     return 0 if result.complete else 1
 
 

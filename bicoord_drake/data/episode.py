@@ -58,6 +58,7 @@ from bicoord_drake.models.scene import Scene
 from bicoord_drake.stages.monitor import check_rows, stage_index_from_rows
 
 if TYPE_CHECKING:
+    from bicoord_drake.sim.frame_renderer import CameraFrame
     from bicoord_drake.sim.simulation import Simulation
 
 SCHEMA_VERSION = 1
@@ -347,6 +348,45 @@ class EpisodeRecorder:
             extrinsic_cv={c: sim.extrinsic_cv(c) for c in cams},
             plant_state=sim.station.plant.GetPositionsAndVelocities(sim.plant_context),
         )
+
+    @property
+    def plant_states(self) -> list[np.ndarray]:
+        """The plant ``[q; v]`` of every frame (empty if none were recorded)."""
+        return list(self._plant_state)
+
+    def attach_images(self, frames: Iterable[CameraFrame]) -> None:
+        """Add the camera frames of a recording made without cameras: one
+        :class:`~bicoord_drake.sim.frame_renderer.CameraFrame` per recorded frame, in order
+        (JPEG-encoded as they arrive, so a whole episode of raw images never sits in memory).
+
+        Nothing is kept unless every frame is valid and the count matches."""
+        if self._rgb:
+            raise ValueError(f"this recording already has camera images: {self.cameras}")
+        rgb: dict[str, list[bytes]] = {}
+        depth: dict[str, list[np.ndarray]] = {}
+        K: dict[str, list[np.ndarray]] = {}
+        E: dict[str, list[np.ndarray]] = {}
+        count = 0
+        for count, frame in enumerate(frames, start=1):
+            if count > len(self):
+                raise ValueError(f"more camera frames than the {len(self)} recorded frames")
+            cams = set(frame.images)
+            if count > 1:
+                self._same(cams, set(rgb), "cameras")
+                self._same(set(frame.depth), set(depth), "depth cameras")
+            for cam in cams:
+                if cam not in frame.intrinsic_cv or cam not in frame.extrinsic_cv:
+                    raise ValueError(f"camera {cam!r}: image without intrinsic_cv/extrinsic_cv")
+                K.setdefault(cam, []).append(_vec(frame.intrinsic_cv[cam], (3, 3), "intrinsic"))
+                E.setdefault(cam, []).append(_vec(frame.extrinsic_cv[cam], (3, 4), "extrinsic"))
+                rgb.setdefault(cam, []).append(encode_jpeg(frame.images[cam], self.jpeg_quality))
+            for cam, d in frame.depth.items():
+                if cam not in cams:
+                    raise ValueError(f"depth for camera {cam!r} without its RGB image")
+                depth.setdefault(cam, []).append(self._depth_image(cam, d))
+        if count != len(self):
+            raise ValueError(f"{count} camera frames for {len(self)} recorded frames")
+        self._rgb, self._depth, self._intrinsic, self._extrinsic = rgb, depth, K, E
 
     @staticmethod
     def _same(given: set, expected: set, what: str) -> None:

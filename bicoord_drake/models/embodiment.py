@@ -18,6 +18,8 @@ limit, so a closing gripper stops at the object.
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
 from typing import Literal
 
 import numpy as np
@@ -31,6 +33,7 @@ from bicoord_drake.models.geometry import (
     Rgba,
     Vec3,
     export_obj,
+    mesh_cache_dir,
     sdf_collision,
     sdf_inertial,
     sdf_mesh_visual,
@@ -202,7 +205,23 @@ FINGER_NAMES = ("left_finger", "right_finger")
 
 
 def arm_sdf(embodiment: Embodiment, model_name: str) -> str:
-    """SDFormat (1.9) for one arm; its base link is welded to the world by the station."""
+    """SDFormat (1.9) for one arm; its base link is welded to the world by the station.
+
+    Cached per process: every station, control plant and planning model builds the same arms
+    (meshing their visuals costs ~0.25 s per arm). A cached text is made again if the mesh
+    files it names are gone or the mesh cache moved."""
+    key = (embodiment, model_name, mesh_cache_dir())
+    sdf = _ARM_SDF.get(key)
+    if sdf is None or not all(Path(uri).exists() for uri in _MESH_URI.findall(sdf)):
+        sdf = _ARM_SDF[key] = _make_arm_sdf(embodiment, model_name)
+    return sdf
+
+
+_ARM_SDF: dict[tuple, str] = {}
+_MESH_URI = re.compile(r"<uri>file://([^<]+)</uri>")
+
+
+def _make_arm_sdf(embodiment: Embodiment, model_name: str) -> str:
     arm = embodiment.arm
     g = arm.gripper
     origin_of = {joint.child: joint for joint in arm.joints}

@@ -11,6 +11,7 @@ from collections.abc import Callable
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from bicoord_drake.models.appearance import Appearance, Split, sample_appearance
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
 
@@ -29,6 +30,9 @@ class Scene(BaseModel):
     draws: dict[str, float | int | str | list] = Field(
         default_factory=dict, description="every random draw, for exact rebuilds"
     )
+    appearance: Appearance | None = Field(
+        None, description="textures, lights, camera jitter (None: the plain default look)"
+    )
 
     @model_validator(mode="after")
     def _unique_names(self) -> Scene:
@@ -37,6 +41,13 @@ class Scene(BaseModel):
         if dup:
             raise ValueError(f"duplicate object names in scene: {sorted(dup)}")
         return self
+
+    def randomized(self, split: Split = "seen") -> Scene:
+        """This scene with the randomized appearance of its seed for `split` (textures from
+        that split, lights, head-camera jitter); objects and poses unchanged."""
+        if self.seed is None:
+            raise ValueError("only a scene drawn from a seed can be randomized")
+        return self.model_copy(update={"appearance": sample_appearance(self.seed, split)})
 
     @property
     def free_objects(self) -> list[SceneObject]:

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from bicoord_drake.models.appearance import Appearance
 from bicoord_drake.models.geometry import ContactProps, Pose, Primitive, sdf_collision, sdf_material
 from bicoord_drake.models.scene import TABLE_TOP
 
@@ -9,15 +12,21 @@ TABLE_SIZE = (1.2, 0.7)
 TABLE_THICKNESS = 0.04
 
 
-def _box_visual(name: str, prim: Primitive, rgba) -> str:
+def _box_visual(name: str, prim: Primitive, rgba, texture: Path | None = None) -> str:
+    material = sdf_material(rgba)
+    if texture is not None:  # the texture's colours as they are (white diffuse)
+        material = f"<material><drake:diffuse_map>file://{texture}</drake:diffuse_map></material>"
     return (
         f'<visual name="{name}">{prim.pose.sdf()}<geometry>{prim.sdf_geometry()}</geometry>'
-        f"{sdf_material(rgba)}</visual>"
+        f"{material}</visual>"
     )
 
 
-def table_sdf() -> str:
-    """SDFormat of a static model `table` (top + legs) and a floor slab."""
+def table_sdf(appearance: Appearance | None = None) -> str:
+    """SDFormat of a static model `table` (top + legs) and a floor slab, plain or with the
+    appearance's table and floor textures."""
+    table_png = appearance.table.png() if appearance else None
+    floor_png = appearance.floor.png() if appearance else None
     sx, sy = TABLE_SIZE
     top = Primitive(
         kind="box",
@@ -29,7 +38,7 @@ def table_sdf() -> str:
     parts = [
         '<link name="table_top">',
         sdf_collision("top", top, rigid),
-        _box_visual("top", top, (0.62, 0.5, 0.38, 1)),
+        _box_visual("top", top, (0.62, 0.5, 0.38, 1), table_png),
     ]
     leg_h = TABLE_TOP - TABLE_THICKNESS
     for i, (x, y) in enumerate(
@@ -44,7 +53,7 @@ def table_sdf() -> str:
         parts.append(_box_visual(f"leg_{i}", leg, (0.4, 0.32, 0.24, 1)))
     parts += [
         sdf_collision("floor", floor, rigid),
-        _box_visual("floor", floor, (0.5, 0.5, 0.52, 1)),
+        _box_visual("floor", floor, (0.5, 0.5, 0.52, 1), floor_png),
         "</link>",
     ]
     return (

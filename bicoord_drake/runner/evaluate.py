@@ -86,6 +86,10 @@ class EvaluateConfig(BaseModel):
     resolution: str = "320x240"
     render: bool = True
     depth: bool = False
+    randomize: bool = Field(False, description="randomized textures, lights, camera jitter")
+    split: Literal["seen", "unseen"] = Field(
+        "unseen", description="instructions and (with randomize) textures of this split"
+    )
     action_mode: Literal["qpos", "endpose"] = "qpos"
     fps: float = Field(15.0, gt=0, le=100, description="control rate (data: from the files)")
     step_limit: int | None = Field(None, ge=1, description="override the task's step limit")
@@ -539,6 +543,8 @@ def _make_env(task: Task, config: EvaluateConfig, seed: int, fps: float) -> Env:
         depth=config.depth,
         render=config.render,
         fps=fps,
+        split=config.split,
+        randomize=config.randomize,
         step_limit=config.step_limit,
     )
 

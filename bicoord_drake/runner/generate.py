@@ -61,6 +61,8 @@ from bicoord_drake.data.episode import (
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.runner.backends import WorkerLost, make_backend, quiet_worker
+from bicoord_drake.runner.stopwatch import Stopwatch
+from bicoord_drake.sim.frame_renderer import FrameRenderer
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import build_station
 from bicoord_drake.stages import StageMonitor, WorldState
@@ -84,6 +86,7 @@ class GenerateConfig(BaseModel):
     fps: float = Field(15.0, gt=0, le=100, description="control and recording rate, Hz")
     depth: bool = False
     render: bool = True
+    randomize: bool = Field(False, description="randomized textures, lights, camera jitter")
     config_name: str = Field("default", pattern=r"^[A-Za-z0-9_.-]+$")
     max_tries: int = Field(0, ge=0, description="give up after this many seeds (0: 5x episodes)")
     video: bool = True
@@ -129,7 +132,10 @@ class GenerateConfig(BaseModel):
 
     def data_settings(self) -> dict:
         """The settings that shape the data: a resumed run must match them."""
-        return self.model_dump(include={"task", "resolution", "fps", "depth", "render"})
+        settings = self.model_dump(include={"task", "resolution", "fps", "depth", "render"})
+        if self.randomize:  # absent when off: directories of earlier runs still resume
+            settings["randomize"] = True
+        return settings
 
 
 @dataclass
@@ -147,50 +153,69 @@ class EpisodeResult:
 
 
 def run_expert(
-    task: Task, seed: int, station_config: StationConfig, depth: bool = False
+    task: Task,
+    seed: int,
+    station_config: StationConfig,
+    depth: bool = False,
+    randomize: bool = False,
 ) -> EpisodeResult:
     """Run `task`'s expert for `seed` in physics and verify every stage.
+
+    The episode runs on a station without cameras; only a verified episode is then rendered,
+    from its recorded plant states (:class:`~bicoord_drake.sim.frame_renderer.FrameRenderer`),
+    when `station_config` asks for cameras: a failed seed costs no rendering. The result's
+    ``timings`` split the wall time into build, planning, physics, monitor, record, render and
+    jpeg seconds. With `randomize`, the scene gets its seed's randomized appearance from the
+    seen split (:meth:`~bicoord_drake.models.scene.Scene.randomized`).
 
     Any failure of the seed (planning, a stage not verified, an annotation that cannot be made)
     is returned with its reason; a ValueError only for a seed outside [0, 2**32)."""
     seed = check_seed(seed)
-    t0 = time.perf_counter()
-    scene = task.sample_scene(seed)
-    sim = Simulation(build_station(scene, station_config))
-    monitor = StageMonitor(task.stages(scene))
-    recorder = EpisodeRecorder(
-        fps=station_config.control_rate, initial_action=sim.station.embodiment.home_action()
-    )
-    instruction = task.instruction(np.random.default_rng(seed), "seen")
-    t_build = time.perf_counter()
-    action = sim.station.embodiment.home_action()
-    try:
-        for action in task.expert(scene, WorldView(sim)):
-            if len(recorder) >= task.step_limit:
-                return EpisodeResult(
-                    seed,
-                    False,
-                    f"step_limit: expert exceeded {task.step_limit} steps",
-                    timings=_since(t0, t_build),
-                )
-            recorder.capture(sim, action, depth=depth)
-            sim.step(action)
-            monitor.update(WorldState.capture(sim, action, scene))
-    except PlanningError as err:
-        return EpisodeResult(seed, False, f"planning: {err}", timings=_since(t0, t_build))
-    monitor.finish(WorldState.capture(sim, action, scene))
-    timings = _since(t0, t_build)
-    if not monitor.success:
-        failed = [
-            s.subgoal for s, ok in zip(monitor.stages, monitor.completed(), strict=True) if not ok
-        ]
-        return EpisodeResult(
-            seed, False, f"stage_not_verified: {', '.join(failed)}", timings=timings
+    clock = Stopwatch()
+    with clock("build"):
+        scene = task.sample_scene(seed)
+        if randomize:
+            scene = scene.randomized("seen")
+        sim = Simulation(build_station(scene, station_config.model_copy(update={"render": False})))
+        monitor = StageMonitor(task.stages(scene))
+        recorder = EpisodeRecorder(
+            fps=station_config.control_rate, initial_action=sim.station.embodiment.home_action()
         )
+        instruction = task.instruction(np.random.default_rng(seed), "seen")
+    action = sim.station.embodiment.home_action()
+
+    def failed(reason: str) -> EpisodeResult:
+        return EpisodeResult(seed, False, reason, timings=clock.seconds())
+
+    try:
+        expert = iter(task.expert(scene, WorldView(sim)))
+        while True:
+            with clock("planning"):
+                next_action = next(expert, None)
+            if next_action is None:
+                break
+            action = next_action
+            if len(recorder) >= task.step_limit:
+                return failed(f"step_limit: expert exceeded {task.step_limit} steps")
+            with clock("record"):
+                recorder.capture(sim, action)
+            with clock("physics"):
+                sim.step(action)
+            with clock("monitor"):
+                monitor.update(WorldState.capture(sim, action, scene))
+    except PlanningError as err:
+        return failed(f"planning: {err}")
+    with clock("monitor"):
+        monitor.finish(WorldState.capture(sim, action, scene))
+    if not monitor.success:
+        stages = zip(monitor.stages, monitor.completed(), strict=True)
+        return failed(f"stage_not_verified: {', '.join(s.subgoal for s, ok in stages if not ok)}")
     try:
         rows = monitor.annotations(len(recorder))
     except ValueError as err:  # cannot happen when success holds; never a crash of the run
-        return EpisodeResult(seed, False, f"annotation: {err}", timings=timings)
+        return failed(f"annotation: {err}")
+    if station_config.render and station_config.cameras.names:
+        render_cameras(recorder, scene, station_config, depth, clock)
     return EpisodeResult(
         seed,
         True,
@@ -198,13 +223,24 @@ def run_expert(
         rows=rows,
         instruction=instruction,
         scene=scene,
-        timings=timings,
+        timings=clock.seconds(),
     )
 
 
-def _since(t0: float, t_build: float) -> dict[str, float]:
-    now = time.perf_counter()
-    return {"build": round(t_build - t0, 3), "expert": round(now - t_build, 3)}
+def render_cameras(
+    recorder: EpisodeRecorder,
+    scene: Scene,
+    station_config: StationConfig,
+    depth: bool,
+    clock: Stopwatch,
+) -> None:
+    """Render a recording's camera frames from its plant states; `clock` gets the seconds of
+    rendering (``render``) and of JPEG encoding (``jpeg``)."""
+    t0 = time.perf_counter()
+    renderer = FrameRenderer(scene, station_config, depth=depth)
+    recorder.attach_images(renderer.render_all(recorder.plant_states))
+    clock.add("render", renderer.seconds)
+    clock.add("jpeg", time.perf_counter() - t0 - renderer.seconds)
 
 
 @dataclass
@@ -222,6 +258,38 @@ class GenerateSummary:
 
 
 @dataclass
+class Throughput:
+    """What one run produced per wall second: the kept demonstrations' simulated seconds, and
+    the workers' seconds per phase over every seed it tried (kept or not)."""
+
+    kept: int = 0
+    simulated_seconds: float = 0.0
+    phases: dict[str, float] = field(default_factory=dict)
+
+    def add(self, outcome: SeedOutcome, fps: float) -> None:
+        for phase, seconds in outcome.timings.items():
+            self.phases[phase] = self.phases.get(phase, 0.0) + seconds
+        if outcome.success and outcome.frames:
+            self.kept += 1
+            self.simulated_seconds += outcome.frames / fps
+
+    def describe(self, wall_seconds: float) -> str:
+        """Two lines: the rate, and where the workers' time went (percent per phase)."""
+        rate = self.simulated_seconds / wall_seconds if wall_seconds > 0 else 0.0
+        busy = sum(self.phases.values())
+        split = ", ".join(
+            f"{phase} {100 * s / busy:.0f} %"
+            for phase, s in sorted(self.phases.items(), key=lambda kv: -kv[1])
+            if busy > 0
+        )
+        return (
+            f"this run: {self.kept} kept episodes, {self.simulated_seconds:.1f} simulated s in "
+            f"{wall_seconds:.1f} wall s = {rate:.2f} simulated s per wall s\n"
+            f"worker time ({busy:.0f} s): {split or 'none'}"
+        )
+
+
+@dataclass
 class DatasetSummary:
     """The outcome of a run over one or more tasks."""
 
@@ -229,6 +297,7 @@ class DatasetSummary:
     manifest: Path
     backend: str
     seconds: float
+    throughput: Throughput = field(default_factory=Throughput)
 
     @property
     def complete(self) -> bool:
@@ -294,6 +363,7 @@ def generate_dataset(
     dataset = _DatasetManifest(config)  # checks the settings before any directory is made
     runs = [_TaskRun(config.for_task(name)) for name in names]
     started = time.perf_counter()
+    throughput = Throughput()
     pending: dict[Any, tuple[_TaskRun, int]] = {}
     with make_backend(config.backend, config.workers, config.ray_address, config.verbose) as pool:
         dataset.backend = pool.describe()
@@ -318,11 +388,14 @@ def generate_dataset(
             except WorkerLost as exc:
                 outcome = SeedOutcome(run.name, seed, False, f"{WORKER_LOST}: {exc}")
             run.record(outcome)
+            throughput.add(outcome, config.fps)
             dataset.write(runs)
             report(f"{run.name} seed {seed}: " + ("kept" if outcome.success else outcome.reason))
     dataset.write(runs)
     summaries = {r.name: r.summary() for r in runs}
-    return DatasetSummary(summaries, dataset.path, dataset.backend, time.perf_counter() - started)
+    return DatasetSummary(
+        summaries, dataset.path, dataset.backend, time.perf_counter() - started, throughput
+    )
 
 
 WORKER_LOST = "worker_lost"
@@ -363,7 +436,9 @@ def produce_episode(config: GenerateConfig, seed: int, staging: str | None) -> S
     task = get_task(config.task)
     station_config = config.station_config()
     try:
-        result = run_expert(task, seed, station_config, depth=config.depth)
+        result = run_expert(
+            task, seed, station_config, depth=config.depth, randomize=config.randomize
+        )
     except Exception as exc:  # noqa: BLE001 - recorded in the manifest with the traceback's tail
         result = EpisodeResult(seed, False, f"crashed: {format_failure(exc)}")
     outcome = SeedOutcome(
@@ -474,9 +549,9 @@ class _TaskRun:
             entry.index, entry.frames = index, outcome.frames
             entry.timings["write"] = round(time.perf_counter() - t_write, 3)
         self.manifest.episodes.append(entry)
-        self.manifest.timings["total"] = round(
-            self.manifest.timings.get("total", 0.0) + sum(entry.timings.values()), 3
-        )
+        totals = self.manifest.timings
+        for phase, seconds in [*entry.timings.items(), ("total", sum(entry.timings.values()))]:
+            totals[phase] = round(totals.get(phase, 0.0) + seconds, 3)
         write_manifest(self.layout.root, self.manifest)
 
     def summary(self) -> GenerateSummary:

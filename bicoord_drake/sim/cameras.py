@@ -16,10 +16,12 @@ from pydrake.all import (
     DepthRange,
     DepthRenderCamera,
     DiagramBuilder,
+    LightParameter,
     MakeRenderEngineVtk,
     MultibodyPlant,
     RenderCameraCore,
     RenderEngineVtkParams,
+    Rgba,
     RgbdSensor,
     RigidTransform,
     RotationMatrix,
@@ -27,6 +29,7 @@ from pydrake.all import (
 )
 
 from bicoord_drake.config import CameraConfig
+from bicoord_drake.models.appearance import Appearance
 from bicoord_drake.models.embodiment import Embodiment
 
 RENDERER = "bicoord_vtk"
@@ -64,9 +67,18 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> RigidTransform:
     return RigidTransform(RotationMatrix(np.column_stack([x, y, z])), eye)
 
 
-def camera_mounts(embodiment: Embodiment, config: CameraConfig) -> list[CameraMount]:
-    """The mounts of the configured cameras."""
-    head = look_at(HEAD_EYE, np.add(HEAD_EYE, HEAD_DIRECTION))
+def camera_mounts(
+    embodiment: Embodiment, config: CameraConfig, appearance: Appearance | None = None
+) -> list[CameraMount]:
+    """The mounts of the configured cameras (the head camera jittered by `appearance`)."""
+    eye, direction = np.array(HEAD_EYE), np.array(HEAD_DIRECTION)
+    if appearance is not None:
+        eye = eye + appearance.head_camera_offset
+        pitch, yaw = appearance.head_camera_tilt
+        direction = (
+            RotationMatrix.MakeZRotation(yaw) @ RotationMatrix.MakeXRotation(pitch) @ direction
+        )
+    head = look_at(eye, eye + direction)
     wrist = look_at(WRIST_EYE, WRIST_TARGET)
     gripper = embodiment.arm.gripper_link.name
     all_mounts = {
@@ -106,14 +118,29 @@ def add_cameras(
     embodiment: Embodiment,
     arms: dict,
     config: CameraConfig,
+    appearance: Appearance | None = None,
 ) -> dict[str, tuple[RgbdSensor, CameraMount]]:
-    """Register the VTK renderer (no shadows) and add one RgbdSensor per configured camera."""
+    """Register the VTK renderer (the appearance's lights, else VTK's head lamp; shadows only
+    if `config.shadows`) and add one RgbdSensor per configured camera."""
     if not scene_graph.HasRenderer(RENDERER):
         params = RenderEngineVtkParams(default_clear_color=[0.92, 0.93, 0.95])
+        params.cast_shadows = config.shadows
+        params.shadow_map_size = 1024
+        if appearance is not None:
+            params.lights = [
+                LightParameter(
+                    type="directional",
+                    frame="world",
+                    direction=light.direction,
+                    color=Rgba(*light.color, 1.0),
+                    intensity=light.intensity,
+                )
+                for light in appearance.lights
+            ]
         scene_graph.AddRenderer(RENDERER, MakeRenderEngineVtk(params))
     sensors = {}
     lo, hi = config.depth_range
-    for mount in camera_mounts(embodiment, config):
+    for mount in camera_mounts(embodiment, config, appearance):
         info = intrinsics(config, mount.fov_y_deg)
         core = RenderCameraCore(RENDERER, info, ClippingRange(0.01, 10.0), RigidTransform())
         color = ColorRenderCamera(core, show_window=False)

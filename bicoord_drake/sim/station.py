@@ -147,7 +147,7 @@ def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
         ),
         builder,
     )
-    Parser(plant).AddModelsFromString(table_sdf(), "sdf")
+    Parser(plant).AddModelsFromString(table_sdf(scene.appearance), "sdf")
     arms = add_robot(plant, embodiment)
     _configure_actuators(plant, embodiment, arms, config.kp_scale)
     object_bodies = add_scene_objects(plant, scene)
@@ -186,7 +186,9 @@ def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
 
     mounts = {}
     if config.render and config.cameras.names:
-        sensors = add_cameras(builder, plant, scene_graph, embodiment, arms, config.cameras)
+        sensors = add_cameras(
+            builder, plant, scene_graph, embodiment, arms, config.cameras, scene.appearance
+        )
         for name, (sensor, mount) in sensors.items():
             builder.ExportOutput(sensor.color_image_output_port(), f"{name}_rgb")
             builder.ExportOutput(sensor.label_image_output_port(), f"{name}_label")

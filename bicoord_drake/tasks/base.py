@@ -29,17 +29,17 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections.abc import Iterator
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
+from bicoord_drake.models.appearance import Split
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.stages.stage import SIDE_NAMES, Stage, WorldState
 
 if TYPE_CHECKING:
     from bicoord_drake.sim.simulation import Simulation
 
-Split = Literal["seen", "unseen"]
 #: Fewest instruction paraphrases a task must provide (seen + unseen).
 MIN_INSTRUCTIONS = 10
 

@@ -145,3 +145,26 @@ def test_each_joint_holds_the_arm_stretched_out_horizontally(robot):
     limits = np.array([j.effort_limit for j in e.arm.joints])
     assert np.all(np.abs(tau[start : start + 6]) < limits)
     assert abs(tau[start + 1]) > 0.25 * limits[1]  # the pose really loads the shoulder
+
+
+def test_arm_sdf_is_reused_but_never_names_a_missing_mesh(tmp_path, monkeypatch):
+    import re
+    from pathlib import Path
+
+    from bicoord_drake.models.embodiment import arm_sdf, get_embodiment
+
+    def meshes(sdf: str) -> list[Path]:
+        return [Path(p) for p in re.findall(r"<uri>file://([^<]+)</uri>", sdf)]
+
+    embodiment = get_embodiment("aloha_viperx")
+    monkeypatch.setenv("BICOORD_CACHE", str(tmp_path / "a"))
+    first = arm_sdf(embodiment, "left_arm")
+    assert arm_sdf(embodiment, "left_arm") is first  # reused, not made again
+    assert meshes(first) and all(p.is_relative_to(tmp_path / "a") for p in meshes(first))
+    for p in meshes(first):
+        p.unlink()
+    again = arm_sdf(embodiment, "left_arm")
+    assert again == first and all(p.exists() for p in meshes(again))
+    monkeypatch.setenv("BICOORD_CACHE", str(tmp_path / "b"))
+    moved = arm_sdf(embodiment, "left_arm")
+    assert all(p.is_relative_to(tmp_path / "b") and p.exists() for p in meshes(moved))

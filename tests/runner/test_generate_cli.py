@@ -1,5 +1,6 @@
 """scripts/generate.py: bad input gives one line and no traceback; one real episode end to end."""
 
+import json
 import os
 import subprocess
 import sys
@@ -65,6 +66,12 @@ def test_one_jigsaw_episode_end_to_end(tmp_path):
         assert f["stages/score"][:].sum() == pytest.approx(1.0)
     assert (root / "video" / "episode0.mp4").stat().st_size > 0
     assert "kept 1 / tried" in result.stdout and "SMP" in result.stdout
+    # the run's rate and where the time went, also per episode in the manifest
+    assert "1 kept episodes" in result.stdout and "simulated s per wall s" in result.stdout
+    manifest = json.loads((root / "manifest.json").read_text())
+    kept = next(e for e in manifest["episodes"] if e["success"])
+    assert {"build", "planning", "physics", "render", "encode", "write"} <= set(kept["timings"])
+    assert manifest["timings"]["physics"] >= kept["timings"]["physics"] > 0
     # running again resumes: nothing left to do, nothing rewritten
     again = run(
         "--task", "jigsaw", "--episodes", "1", "--out", str(tmp_path), "--resolution", "64x48"

@@ -1,0 +1,185 @@
+"""Generation throughput: simulated seconds of kept demonstrations per wall second.
+
+    python benchmarks/bench_throughput.py --tasks jigsaw,cook --episodes 4 --workers 1,2 \\
+        [--no-render-too] [--before REV] [--repeats 1] [--out benchmarks/bench_throughput.md]
+
+Every measurement is one run of ``scripts/generate.py`` as a user runs it (a fresh process, so
+startup is included) on the same seeds: ``--seed`` upward until ``--episodes`` are kept. Its
+wall time is taken around the process; the simulated seconds are the kept episodes' frames over
+the recording rate; the split (build, planning, physics, monitor, render, jpeg, encode, write)
+is the sum of the workers' per-seed timings in the run's ``manifest.json`` (worker seconds, so
+with 2 workers it adds up to about twice the wall time).
+
+``--before REV`` also measures another commit, checked out with ``git worktree`` into a
+temporary directory, interleaved with this checkout (same seeds, same background load): the
+"before" of a speed change. The 1-minute load average is recorded before every run; compare
+ratios within one run, not figures across machines or days.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def measure(tree: Path, task: str, episodes: int, seed: int, workers: int, render: bool) -> dict:
+    """One generate.py run in `tree`; its wall time, kept simulated seconds and phase split."""
+    out = Path(tempfile.mkdtemp(prefix="bench-throughput-"))
+    cmd = [
+        sys.executable,
+        str(tree / "scripts" / "generate.py"),
+        f"--task={task}",
+        f"--episodes={episodes}",
+        f"--seed={seed}",
+        f"--max-tries={3 * episodes}",
+        f"--workers={workers}",
+        f"--out={out}",
+    ]
+    if not render:
+        cmd.append("--no-render")
+    env = {**os.environ, "PYTHONPATH": str(tree)}
+    load = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    run = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    manifest_path = out / task / "default" / "manifest.json"
+    if not manifest_path.exists():
+        raise RuntimeError(f"{' '.join(cmd)} wrote no manifest:\n{run.stderr[-2000:]}")
+    manifest = json.loads(manifest_path.read_text())
+    shutil.rmtree(out, ignore_errors=True)
+    fps = float(manifest["config"].get("fps", 15.0))
+    kept = [e for e in manifest["episodes"] if e["success"]]
+    split: dict[str, float] = {}
+    for entry in manifest["episodes"]:
+        for phase, seconds in entry.get("timings", {}).items():
+            split[phase] = split.get(phase, 0.0) + seconds
+    simulated = sum(e["frames"] for e in kept) / fps
+    return {
+        "wall": wall,
+        "simulated": simulated,
+        "rate": simulated / wall,
+        "kept": len(kept),
+        "tried": len(manifest["episodes"]),
+        "split": split,
+        "load": load,
+    }
+
+
+def checkout(rev: str) -> Path:
+    tree = Path(tempfile.mkdtemp(prefix="bench-before-")) / "tree"
+    subprocess.run(
+        ["git", "worktree", "add", "--detach", str(tree), rev],
+        cwd=ROOT,
+        check=True,
+        capture_output=True,
+    )
+    return tree
+
+
+def revision(tree: Path) -> str:
+    return subprocess.run(
+        ["git", "rev-parse", "--short", "HEAD"], cwd=tree, capture_output=True, text=True
+    ).stdout.strip()
+
+
+def table(rows: list[dict]) -> str:
+    phases = sorted({p for r in rows for p in r["split"]}, key=PHASE_ORDER.index)
+    head = "| commit | task | render | workers | kept/tried | sim s | wall s | **sim s / wall s** |"
+    head += "".join(f" {p} |" for p in phases) + " load |"
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
+    for r in rows:
+        split = "".join(f" {r['split'].get(p, 0.0):.0f} |" for p in phases)
+        lines.append(
+            f"| `{r['commit']}` | {r['task']} | {'yes' if r['render'] else 'no'} | "
+            f"{r['workers']} | {r['kept']}/{r['tried']} | {r['simulated']:.1f} | "
+            f"{r['wall']:.1f} | **{r['rate']:.2f}** |{split} {r['load']:.1f} |"
+        )
+    return "\n".join(lines)
+
+
+PHASE_ORDER = [
+    "build",
+    "planning",
+    "physics",
+    "monitor",
+    "record",
+    "render",
+    "jpeg",
+    "expert",
+    "encode",
+    "write",
+]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--tasks", default="jigsaw", help="comma-separated task names")
+    parser.add_argument("--episodes", type=int, default=4, help="episodes kept per run")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--workers", default="1,2", help="comma-separated worker counts")
+    parser.add_argument("--repeats", type=int, default=1, help="runs per setting (median)")
+    parser.add_argument("--no-render-too", action="store_true", help="also measure --no-render")
+    parser.add_argument("--before", help="also measure this git revision (the 'before')")
+    parser.add_argument("--out", type=Path, help="markdown file to write (default: print)")
+    args = parser.parse_args()
+
+    trees = [ROOT]
+    if args.before:
+        trees.insert(0, checkout(args.before))
+    renders = [True, False] if args.no_render_too else [True]
+    rows = []
+    try:
+        for task in args.tasks.split(","):
+            for render in renders:
+                for workers in (int(w) for w in args.workers.split(",")):
+                    runs: dict[Path, list[dict]] = {tree: [] for tree in trees}
+                    for k in range(args.repeats):
+                        for tree in trees if k % 2 == 0 else trees[::-1]:
+                            runs[tree].append(
+                                measure(tree, task, args.episodes, args.seed, workers, render)
+                            )
+                    for tree, results in runs.items():
+                        median = sorted(results, key=lambda r: r["rate"])[len(results) // 2]
+                        row = {
+                            **median,
+                            "task": task,
+                            "render": render,
+                            "workers": workers,
+                            "commit": revision(tree),
+                            "rate": statistics.median(r["rate"] for r in results),
+                        }
+                        rows.append(row)
+                        print(table([row]).splitlines()[-1], flush=True)
+    finally:
+        if args.before:
+            subprocess.run(["git", "worktree", "remove", "--force", str(trees[0])], cwd=ROOT)
+    text = "\n".join(
+        [
+            f"Measured {datetime.now(UTC):%Y-%m-%d %H:%M} UTC on {platform.machine()}, "
+            f"nproc = {os.cpu_count()}, Python {platform.python_version()}; "
+            f"{args.episodes} kept episodes per run from seed {args.seed}, "
+            f"median of {args.repeats} run(s). Phase columns: worker seconds.",
+            "",
+            table(rows),
+            "",
+        ]
+    )
+    if args.out:
+        args.out.write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()

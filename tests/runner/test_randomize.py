@@ -1,0 +1,35 @@
+"""--randomize: the appearance changes the pictures, never the physics or the expert."""
+
+import numpy as np
+
+from bicoord_drake.config import StationConfig
+from bicoord_drake.env import make_env
+from bicoord_drake.runner import generate as gen
+from tests.runner.test_generate_timings import Wave
+
+
+def test_randomized_episode_has_the_same_actions_and_states_but_other_pictures():
+    plain = gen.run_expert(Wave(passes=True), 5, StationConfig())
+    randomized = gen.run_expert(Wave(passes=True), 5, StationConfig(), randomize=True)
+    assert plain.scene.appearance is None
+    assert randomized.scene.appearance.split == "seen"
+    np.testing.assert_array_equal(plain.recorder.actions, randomized.recorder.actions)
+    np.testing.assert_array_equal(
+        np.stack(plain.recorder.plant_states), np.stack(randomized.recorder.plant_states)
+    )
+    a = next(plain.recorder.frames("head_camera")).astype(int)
+    b = next(randomized.recorder.frames("head_camera")).astype(int)
+    assert np.abs(a - b).mean() > 10
+
+
+def test_randomize_is_a_data_setting_only_when_on():
+    assert "randomize" not in gen.GenerateConfig(task="jigsaw").data_settings()
+    assert gen.GenerateConfig(task="jigsaw", randomize=True).data_settings()["randomize"]
+
+
+def test_evaluation_env_draws_textures_of_its_split():
+    env = make_env("jigsaw", 100_000, render=False, randomize=True, split="unseen")
+    assert env.scene.appearance.split == "unseen"
+    env.reset(100_001)
+    assert env.scene.appearance.split == "unseen" and env.scene.seed == 100_001
+    assert make_env("jigsaw", 100_000, render=False).scene.appearance is None
