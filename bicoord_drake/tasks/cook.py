@@ -306,10 +306,12 @@ class Cook(Task):
             yield from run(again)
             if view.object_pose(roll)[2] < z0 + 0.03:  # the grasp did not take it along
                 return
-            if aims is None and in_pan:
-                aims = _aim_beside(view, in_pan[0])
+            # The miss came from flying into the catcher's gripper on the far rim (seeds 19,
+            # 21): this time the landing nearest the pan's axis and the steep entry first.
             try:
-                toss_again = _toss(ctx, aims or [ROLL_AIM, 0.5 * ROLL_AIM, 0.0])
+                if aims is None and in_pan:
+                    aims = _aim_beside(view, in_pan[0])
+                toss_again = _toss(ctx, (aims or [ROLL_AIM, 0.0])[::-1], steep_first=True)
             except PlanningError:
                 return
             yield from run(toss_again)
@@ -482,11 +484,13 @@ def _aim_beside(view: WorldView, roll: str) -> list[float]:
     return [side * ROLL_REACH, (side * ROLL_REACH + nearest) / 2, nearest]
 
 
-def _toss(ctx: SkillContext, aims: list[float]) -> Motion:
+def _toss(ctx: SkillContext, aims: list[float], steep_first: bool = False) -> Motion:
     """Left throws its roll into the skillet right holds (``skills.toss``), landing at the first
-    of `aims` (m off the pan's axis along the flight) that plans, trying RELEASES."""
+    of `aims` (m off the pan's axis along the flight) that plans, trying RELEASES, then
+    STEEP_RELEASES (those first with `steep_first`)."""
     reasons = []
-    options = [(xyz, speed, np.radians(45)) for xyz, speed in RELEASES] + list(STEEP_RELEASES)
+    flat = [(xyz, speed, np.radians(45)) for xyz, speed in RELEASES]
+    options = list(STEEP_RELEASES) + flat if steep_first else flat + list(STEEP_RELEASES)
     for ((x, y, z), speed, angle), aim in ((o, a) for a in aims for o in options):
         try:
             return toss(
