@@ -154,3 +154,33 @@ def test_expert_succeeds_on_at_least_90_percent_of_30_seeds(task):
         run_expert(task, seed, StationConfig(render=False)).success for seed in range(30)
     )
     assert successes >= 27
+
+
+def test_a_roll_lying_on_the_other_roll_in_the_pan_is_not_in_it(cook, task):
+    """The throw stage (and the expert's re-throw, which asks the same question) does not count
+    a roll resting on the other one above the rim (seed 19's second roll)."""
+    scene = task.sample_scene(0)
+    stages = task.stages(scene)
+    pan = np.array([0.06, -0.05, 0.87])
+    floor = cook.SKILLET.wall
+    low = pan + [-0.02, 0, floor + cook.ROLL_RADIUS]
+    state = _moved(scene, WorldState.initial(scene), skillet=pan, roll_0=low, roll_1=low)
+    assert stages[1].predicate(state) == 1.0  # both lying on the floor (overlap is no matter)
+    piled = _moved(scene, state, roll_1=low + [0, 0, 2 * cook.ROLL_RADIUS])
+    assert stages[1].predicate(piled) == 0.5
+    assert not cook._in_pan("roll_1")(piled)
+
+
+def test_a_roll_pinned_in_the_tipped_pan_is_found_for_another_tip(cook):
+    """The serve tips again while a measured roll lies in the pan, tipped or not."""
+    from pydrake.all import RigidTransform, RotationMatrix
+
+    X_WP = RigidTransform(RotationMatrix.MakeYRotation(2.1), [-0.07, 0.05, 0.90])
+    in_it = X_WP @ RigidTransform([0.03, 0.0, cook.SKILLET.wall + cook.ROLL_RADIUS])
+    assert cook._lies_in_pan({"skillet": X_WP, "roll_0": in_it}, "roll_0")
+    # Tipped back beside the plate: a roll on the plate, or on the table beside the pan.
+    level = RigidTransform([-0.19, 0.04, 0.785])
+    on_plate = RigidTransform([-0.03, 0.04, 0.796])
+    beside = level @ RigidTransform([cook.SKILLET.radius + 0.01, 0.0, 0.03])
+    for roll in (on_plate, beside):
+        assert not cook._lies_in_pan({"skillet": level, "roll_0": roll}, "roll_0")
