@@ -55,7 +55,9 @@ from bicoord_drake.tasks.base import Task, WorldView
 from bicoord_drake.tasks.registry import register_task
 
 #: A dish held by its rim: a straight 12 mm wall (what holds level in a rim grasp,
-#: benchmarks/bench_skills.md), 15 cm across, 3 cm high (a rim grasp needs > 2.25 cm).
+#: benchmarks/bench_skills.md), 15 cm across, 3 cm high (a rim grasp needs > 2.25 cm). Its
+#: walls stand on its base disc: one contact patch with the table instead of thirteen, ~3x
+#: cheaper physics at rest (benchmarks/bench_plate_physics.md); the cup's likewise.
 PLATE = BowlShape(
     radius=0.075, base_radius=0.075, height=0.03, wall=0.012, segments=12, walls_on_base=True
 )
