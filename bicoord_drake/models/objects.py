@@ -77,6 +77,11 @@ class BowlShape(_Shape):
     height: float = Field(gt=0)
     wall: float = Field(0.006, gt=0, description="wall and base thickness, m")
     segments: int = Field(16, ge=6, le=48)
+    walls_on_base: bool = Field(
+        False,
+        description="wall slabs stand on the base disc instead of reaching down to the support: "
+        "only the disc touches the table (one contact patch instead of 1 + segments)",
+    )
 
     def primitives(self) -> list[Primitive]:
         prims = [
@@ -86,11 +91,13 @@ class BowlShape(_Shape):
                 pose=Pose(xyz=(0.0, 0.0, self.wall / 2)),
             )
         ]
-        flare = self.radius - self.base_radius
-        slant = float(np.hypot(flare, self.height))
-        tilt = float(np.arctan2(flare, self.height))  # wall lean away from the axis
-        r_mid = self.base_radius + flare / 2 - self.wall / 2
-        chord = 2 * (self.base_radius + flare / 2) * np.tan(np.pi / self.segments) * 1.08
+        z0 = self.wall if self.walls_on_base else 0.0  # where the slabs start
+        r0 = self.base_radius + (self.radius - self.base_radius) * z0 / self.height
+        flare, rise = self.radius - r0, self.height - z0
+        slant = float(np.hypot(flare, rise))
+        tilt = float(np.arctan2(flare, rise))  # wall lean away from the axis
+        r_mid = r0 + flare / 2 - self.wall / 2
+        chord = 2 * (r0 + flare / 2) * np.tan(np.pi / self.segments) * 1.08
         for k in range(self.segments):
             yaw = 2 * np.pi * k / self.segments
             prims.append(
@@ -98,7 +105,7 @@ class BowlShape(_Shape):
                     kind="box",
                     size=(self.wall, float(chord), slant),
                     pose=Pose(
-                        xyz=(r_mid * np.cos(yaw), r_mid * np.sin(yaw), self.height / 2),
+                        xyz=(r_mid * np.cos(yaw), r_mid * np.sin(yaw), (z0 + self.height) / 2),
                         rpy=(0.0, tilt, yaw),
                     ),
                 )

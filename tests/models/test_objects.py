@@ -77,3 +77,31 @@ def test_resolution_hint_overrides_the_shape_default():
     assert "<drake:mesh_resolution_hint>0.01<" not in coarse
     with pytest.raises(ValidationError):
         SceneObject(name="p", shape=plate, resolution_hint=0.0)
+
+
+@pytest.mark.parametrize("base_radius", [0.075, 0.05])
+def test_walls_on_base_leave_only_the_base_on_the_support(base_radius):
+    kw = dict(radius=0.075, base_radius=base_radius, height=0.03, wall=0.012, segments=12)
+    standing, reaching = BowlShape(**kw, walls_on_base=True), BowlShape(**kw)
+    for p in standing.primitives()[1:]:
+        bottom = p.trimesh().bounds[0][2]
+        assert standing.wall / 2 < bottom < standing.wall + 0.001  # on the disc, off the table
+        top = p.trimesh().bounds[1][2]
+        assert top == pytest.approx(standing.height, abs=0.005)  # the rim keeps its height
+        # the wall still rises from the base's edge, where the rim grasp expects it
+        assert np.hypot(*p.pose.xyz[:2]) == pytest.approx(
+            base_radius + (0.075 - base_radius) * 0.7 - 0.006, abs=0.004
+        )
+    assert min(p.trimesh().bounds[0][2] for p in reaching.primitives()[1:]) < 0.002
+    assert standing.primitives()[0] == reaching.primitives()[0]  # the same base disc
+
+
+def test_walls_on_base_default_keeps_the_original_slabs():
+    # other tasks' bowls (cook, handover) must keep bit-identical collision geometry
+    bowl = BowlShape(radius=0.07, base_radius=0.045, height=0.05, segments=16)
+    assert bowl == BowlShape(
+        radius=0.07, base_radius=0.045, height=0.05, segments=16, walls_on_base=False
+    )
+    slab = bowl.primitives()[1]
+    assert slab.pose.xyz[2] == bowl.height / 2
+    assert slab.size[2] == float(np.hypot(0.07 - 0.045, 0.05))
