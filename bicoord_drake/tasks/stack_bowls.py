@@ -38,9 +38,10 @@ from bicoord_drake.stages.predicates import (
 from bicoord_drake.tasks.base import Task, WorldView
 from bicoord_drake.tasks.registry import register_task
 
-#: The bowl: 11 cm across the rim, 9 cm at the base, 5 cm deep, 6 mm wall. The steep wall makes
-#: a nested bowl sit WALL / sin(lean) ~ 3 cm above the one below it.
-BOWL = BowlShape(radius=0.055, base_radius=0.045, height=0.05, wall=0.006)
+#: The bowl: 11.6 cm across the rim, 9 cm at the base, 5 cm deep, 9 mm wall (thicker than the
+#: closed jaw, so the pads grip it flat). The steep wall makes a nested bowl sit
+#: WALL / sin(lean) ~ 3.6 cm above the one below it.
+BOWL = BowlShape(radius=0.058, base_radius=0.045, height=0.05, wall=0.009)
 BOWL_MASS = 0.1  # kg
 BOWLS = tuple(f"bowl_{k}" for k in range(1, 5))  # in stacking order
 #: Height of a nested bowl's frame above the frame of the bowl it sits in (m, nominal).
@@ -49,7 +50,7 @@ NEST_RISE = BOWL.wall / math.sin(math.atan2(BOWL.radius - BOWL.base_radius, BOWL
 #: higher (the spec's "xy within 4 cm, at least 2 cm above"; the upper bound rules out a bowl
 #: perched on the rim), both upright within MAX_TILT.
 NEST_XY = 0.04
-NEST_DZ = (0.02, NEST_RISE + 0.015)
+NEST_DZ = (0.02, NEST_RISE + 0.01)
 MAX_TILT = math.radians(15)
 #: Where the bowls stand: |x| in X_RANGE on their side, y in Y_RANGE, MIN_GAP apart and
 #: SPOT_GAP from the stack spot (centre to centre, m).
@@ -69,15 +70,15 @@ COLORS = {
     "pink": (0.9, 0.5, 0.6, 1.0),
     "orange": (0.95, 0.55, 0.15, 1.0),
 }
-#: Rim grasps: the pads reach RIM_DEPTH + pad length below their top, so with the pad top
-#: 12 mm above the rim the fingertips end 2.3 cm below it - above the rim of the bowl below
-#: when the held bowl is nested (NEST_RISE ~ 3 cm).
-GRASP = GraspParams()
+#: Rim grasps down the wall's slant, pads flat on it (the bowl stays upright in the grip); the
+#: pad top 5 mm above the rim, so the fingertips end 3 cm below it - above the rim of the bowl
+#: below when the held bowl is nested (NEST_RISE ~ 3.6 cm).
+GRASP = GraspParams(rim_lean=True, rim_depth=-0.005)
 #: The first bowl is let go this far above the table: a bowl hangs tilted in a rim grasp, its
 #: fingertips below its base.
-SPOT_DROP = 0.008
+SPOT_DROP = 0.004
 #: A nested bowl is let go this far above its nested height; it settles the rest.
-NEST_DROP = 0.008
+NEST_DROP = 0.004
 #: Control steps over which a gripper lets go of a nested bowl (a fast opening pushes it aside).
 RELEASE_STEPS = 10
 #: Where an arm holding the next bowl waits: TCP at |x|, y past the spot, z above the table.
@@ -109,7 +110,7 @@ class StackBowls(Task):
     scores 1/3: the score is (n - 1)/3 for the tallest stack n.
 
     Success: four bowls nested at the spot - the bottom one on the table within 4 cm of the
-    spot's centre, each next one nested in the one below (frames within 4 cm in xy, 2 to 4.5 cm
+    spot's centre, each next one nested in the one below (frames within 4 cm in xy, 2 to 4.6 cm
     higher), all within 15 deg of upright, both grippers open, no finger touching a bowl, every
     bowl at rest for 0.3 s.
     """
