@@ -1,4 +1,4 @@
-"""stack_bowls: seeded scenes, stages on synthetic states."""
+"""stack_bowls: seeded scenes, stages on synthetic states, (slow) the expert."""
 
 from dataclasses import replace
 
@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 
 import bicoord_drake.tasks.stack_bowls as sb
+from bicoord_drake.config import StationConfig
 from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.stages.predicates import reset_predicate
 from bicoord_drake.tasks.base import check_task_class
@@ -160,3 +162,12 @@ def test_stages_count_only_in_order(task, scene):
         monitor.update(replace(four, step=k, time=k / 15))
     monitor.finish(replace(four, step=10, time=10 / 15))
     assert monitor.completed() == [False] * 5 and monitor.score() == 0.0
+
+
+# ------------------------------------------------------------------ physics
+@pytest.mark.slow
+def test_expert_nests_all_four_bowls_on_two_seeds(task):
+    for seed in (0, 1):
+        result = run_expert(task, seed, StationConfig(render=False))
+        assert result.success, (seed, result.reason)
+        assert len(result.recorder) <= task.step_limit
