@@ -39,7 +39,8 @@ PREAMBLE = (
     "Written by `python benchmarks/expert_success.py --tasks all --seeds 0-29 --workers 2`: one "
     "section per task, each from `generate()` without rendering on every seed of the range (an "
     "episode is kept only when the expert ran in physics and every stage verified). A section "
-    "names the commit it was measured at; `(dirty)` means the work tree had uncommitted changes.\n"
+    "names the commit it was measured at; `(dirty)` means the package (`bicoord_drake/`, "
+    "`pyproject.toml`) had uncommitted changes or changed during the run.\n"
 )
 
 
@@ -90,22 +91,35 @@ def parse_tasks(text: str, valid: list[str]) -> list[str]:
     return list(dict.fromkeys(names))
 
 
+#: What decides an expert's result: a change elsewhere (this report, docs, tests) does not.
+CODE_PATHS = ("bicoord_drake", "pyproject.toml")
+
+
+def _git(root: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True)
+
+
 def git_state(root: Path = ROOT) -> tuple[str, bool]:
-    """(commit hash, whether tracked files differ from it); ('unknown', False) outside git."""
+    """(commit hash, whether the package's tracked files differ from it); ('unknown', False)
+    outside git. This report and other files outside :data:`CODE_PATHS` do not count."""
     try:
-        commit = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
-        ).stdout.strip()
-        status = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=root,
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout
-    except (OSError, subprocess.CalledProcessError):
+        head = _git(root, "rev-parse", "HEAD")
+        status = _git(root, "status", "--porcelain", "--untracked-files=no", "--", *CODE_PATHS)
+    except OSError:
         return "unknown", False
-    return commit, bool(status.strip())
+    if head.returncode or status.returncode:
+        return "unknown", False
+    return head.stdout.strip(), bool(status.stdout.strip())
+
+
+def code_changed(old: str, new: str, root: Path = ROOT) -> bool:
+    """Whether the package differs between two commits (True if git cannot tell)."""
+    if old == new:
+        return False
+    try:
+        return _git(root, "diff", "--quiet", old, new, "--", *CODE_PATHS).returncode != 0
+    except OSError:
+        return True
 
 
 def machine() -> str:
@@ -196,7 +210,7 @@ def run_task(task: str, seeds: range, workers: int, work_dir: Path) -> TaskResul
     t0 = time.perf_counter()
     summary = generate(config)
     end_commit, end_dirty = git_state()  # the tree may change while the seeds run
-    dirty = dirty or end_dirty or end_commit != commit
+    dirty = dirty or end_dirty or code_changed(commit, end_commit)
     return TaskResult(
         task=task,
         seeds=seeds,

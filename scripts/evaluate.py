@@ -26,6 +26,8 @@ import argparse
 import json
 import sys
 
+from bicoord_drake.runner.backends import add_backend_arguments
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
@@ -67,21 +69,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--max-tries", type=int, default=0, help="seeds to try at most (default: 3 x episodes)"
     )
-    parser.add_argument(
-        "--workers",
-        type=int,
-        default=0,
-        help="rollouts in flight (default: 1 locally, every CPU of the Ray cluster)",
-    )
-    parser.add_argument(
-        "--backend",
-        default="local",
-        choices=("local", "ray"),
-        help="local processes (default) or Ray (pip install -e '.[ray]')",
-    )
-    parser.add_argument(
-        "--ray-address",
-        help="join this Ray cluster (auto | HOST:PORT); default: start a local Ray instance",
+    add_backend_arguments(
+        parser, "rollouts in flight (default: 1 locally, every CPU of the Ray cluster)"
     )
     parser.add_argument("--verbose", action="store_true", help="show Drake's and Ray's logs")
     args = parser.parse_args(argv)

@@ -21,6 +21,8 @@ from __future__ import annotations
 import argparse
 import sys
 
+from bicoord_drake.runner.backends import add_backend_arguments
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
@@ -57,22 +59,10 @@ def main(argv: list[str] | None = None) -> int:
         default=0,
         help="stop after this many seeds (default: 5 x episodes)",
     )
-    parser.add_argument(
-        "--workers",
-        type=int,
-        default=0,
-        help="seeds in flight (default: 1 locally, every CPU of the Ray cluster; "
+    add_backend_arguments(
+        parser,
+        "seeds in flight (default: 1 locally, every CPU of the Ray cluster; "
         "locally try the core count)",
-    )
-    parser.add_argument(
-        "--backend",
-        default="local",
-        choices=("local", "ray"),
-        help="local processes (default) or Ray (pip install -e '.[ray]')",
-    )
-    parser.add_argument(
-        "--ray-address",
-        help="join this Ray cluster (auto | HOST:PORT); default: start a local Ray instance",
     )
     parser.add_argument(
         "--shared-fs",

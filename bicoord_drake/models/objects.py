@@ -159,23 +159,25 @@ class SceneObject(BaseModel):
     collide: bool = Field(True, description="False for flat markers that are only seen")
     friction: float = Field(0.9, gt=0)
     hydroelastic_modulus: float = Field(1e6, gt=0)
+    resolution_hint: float | None = Field(
+        None, gt=0, description="hydroelastic mesh size, m (default: from the shape)"
+    )
 
 
 def object_sdf(obj: SceneObject) -> str:
     """SDFormat for one scene object (a single body named after the object)."""
     prims = obj.shape.primitives()
     mesh = obj.shape.visual_mesh()
+    hint = obj.resolution_hint or _resolution_hint(obj.shape)
     props = ContactProps(
         friction=obj.friction,
         hydroelastic="compliant",
         hydroelastic_modulus=obj.hydroelastic_modulus,
-        resolution_hint=_resolution_hint(obj.shape),
+        resolution_hint=hint,
         dissipation=3.0,
     )
     if obj.fixed:
-        props = ContactProps(
-            friction=obj.friction, hydroelastic="rigid", resolution_hint=_resolution_hint(obj.shape)
-        )
+        props = ContactProps(friction=obj.friction, hydroelastic="rigid", resolution_hint=hint)
     mass, com, inertia = inertial_of(prims, obj.mass)
     body = [f'<link name="{obj.name}">', sdf_inertial(mass, com, inertia)]
     if obj.collide:

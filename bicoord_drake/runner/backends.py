@@ -30,7 +30,10 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor
 from concurrent.futures import wait as wait_futures
 from multiprocessing import get_context
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
+
+if TYPE_CHECKING:
+    import argparse
 
 BackendName = Literal["local", "ray"]
 BACKENDS: tuple[str, ...] = ("local", "ray")
@@ -244,3 +247,19 @@ def make_backend(
     if name == "ray":
         return RayBackend(workers, address, verbose)
     raise ValueError(f"unknown backend {name!r}; backends: {', '.join(BACKENDS)}")
+
+
+def add_backend_arguments(parser: argparse.ArgumentParser, workers_help: str) -> None:
+    """The command-line options that choose a backend: ``--workers``, ``--backend`` and
+    ``--ray-address`` (shared by scripts/generate.py and scripts/evaluate.py)."""
+    parser.add_argument("--workers", type=int, default=0, help=workers_help)
+    parser.add_argument(
+        "--backend",
+        default="local",
+        choices=("local", "ray"),
+        help="local processes (default) or Ray (pip install -e '.[ray]')",
+    )
+    parser.add_argument(
+        "--ray-address",
+        help="join this Ray cluster (auto | HOST:PORT); default: start a local Ray instance",
+    )

@@ -278,6 +278,30 @@ def inside(
     return Predicate(check, f"inside({obj!r}, {container!r}, margin={margin}, z_above={z_above})")
 
 
+def stands_in(
+    obj: str,
+    container: str,
+    gap: float = 0.008,
+    max_tilt: float = math.radians(10),
+    *,
+    cavity: Cavity | None = None,
+) -> Predicate:
+    """`obj` stands upright on the floor of `container` (a cup on a plate): :func:`inside` it,
+    its bottom at most `gap` above the container's inner floor, and both within `max_tilt` of
+    upright."""
+
+    def check(s: WorldState) -> bool:
+        cav = cavity if cavity is not None else cavity_of(s.shape(container))
+        if tilt(s, obj) > max_tilt or tilt(s, container) > max_tilt:
+            return False
+        R_WC, p_WC = s.rotation(container), s.position(container)
+        lowest = float(((world_corners(s, obj) - p_WC) @ R_WC)[:, 2].min())
+        return bool(lowest <= cav.floor + gap and contained(s))
+
+    contained = inside(obj, container, z_above=math.inf, cavity=cavity, max_tilt=max_tilt)
+    return Predicate(check, f"stands_in({obj!r}, {container!r}, gap={gap})")
+
+
 def released(obj: str, open_at: float = OPEN_AT) -> Predicate:
     """Both grippers commanded open (opening >= `open_at`) and no finger touching `obj`."""
 

@@ -15,6 +15,7 @@ TASK_MODULES: tuple[str, ...] = (
     "exchange_mics",
     "handover_block_with_bowls",
     "jigsaw",
+    "place_plate_and_cup",
 )
 
 for _module in TASK_MODULES:

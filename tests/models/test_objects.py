@@ -64,3 +64,16 @@ def test_compound_shape_builds_a_simulated_object_from_its_parts():
     for _ in range(10):
         sim.step(sim.station.embodiment.home_action())
     assert sim.object_poses()["mic"][2] == pytest.approx(TABLE_TOP, abs=0.002)  # stands on its base
+
+
+def test_resolution_hint_overrides_the_shape_default():
+    from bicoord_drake.models.objects import object_sdf
+
+    plate = BowlShape(radius=0.075, base_radius=0.075, height=0.03, wall=0.012, segments=12)
+    default = object_sdf(SceneObject(name="p", shape=plate))
+    coarse = object_sdf(SceneObject(name="p", shape=plate, resolution_hint=0.03))
+    assert "<drake:mesh_resolution_hint>0.01<" in default
+    assert "<drake:mesh_resolution_hint>0.03<" in coarse
+    assert "<drake:mesh_resolution_hint>0.01<" not in coarse
+    with pytest.raises(ValidationError):
+        SceneObject(name="p", shape=plate, resolution_hint=0.0)

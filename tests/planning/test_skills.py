@@ -259,3 +259,18 @@ def test_stabilized_bowl_stays_put_while_the_other_arm_fills_it():
     assert np.linalg.norm(poses["bowl"][:3] - before) < 0.003
     assert np.linalg.norm(poses["cube"][:2] - goal.translation()[:2]) < 0.015
     assert sim.finger_contacts()["bowl"] == {"left"}
+
+
+def test_carry_above_stops_over_the_goal_still_holding():
+    scene = Scene(name="one_cube", objects=(cube("a", -0.15, -0.1),))
+    ctx = sk.SkillContext(PlanningModel(scene))
+    with pytest.raises(PlanningError) as info:
+        sk.carry_above(ctx, "left", RigidTransform([-0.05, -0.15, 0.77]))
+    assert info.value.reason == "gripper_empty"
+    sk.pick(ctx, "left", "a")
+    goal = RigidTransform([-0.05, -0.15, 0.772])
+    plan = sk.carry_above(ctx, "left", goal, height=0.08)
+    assert plan.num_steps > 1 and np.all(plan.opening == plan.opening[0])
+    assert "left" in ctx.model.held  # still held: nothing was released
+    p = ctx.model.held_pose("left", ctx.q).translation()
+    np.testing.assert_allclose(p, goal.translation() + [0, 0, 0.08], atol=0.003)

@@ -97,3 +97,29 @@ def test_cli_refuses_bad_input_before_running_anything(tmp_path):
         assert done.returncode == 2
         assert words in done.stderr and "Traceback" not in done.stderr
     assert not out.exists()
+
+
+def test_only_package_changes_make_a_measurement_dirty(es, tmp_path):
+    def git(*args):
+        subprocess.run(["git", *args], cwd=tmp_path, check=True, capture_output=True)
+
+    git("init", "-q")
+    git("config", "user.email", "t@t")
+    git("config", "user.name", "t")
+    (tmp_path / "bicoord_drake").mkdir()
+    (tmp_path / "bicoord_drake" / "a.py").write_text("x = 1\n")
+    (tmp_path / "report.md").write_text("old\n")
+    git("add", "-A")
+    git("commit", "-qm", "one")
+    first, dirty = es.git_state(tmp_path)
+    assert not dirty
+    (tmp_path / "report.md").write_text("the script's own output\n")  # e.g. expert_success.md
+    assert es.git_state(tmp_path) == (first, False)
+    git("commit", "-qam", "report only")
+    second, _ = es.git_state(tmp_path)
+    assert second != first and not es.code_changed(first, second, tmp_path)
+    (tmp_path / "bicoord_drake" / "a.py").write_text("x = 2\n")
+    assert es.git_state(tmp_path)[1]
+    git("commit", "-qam", "code")
+    third, _ = es.git_state(tmp_path)
+    assert es.code_changed(first, third, tmp_path)

@@ -102,6 +102,32 @@ def test_stacked_is_a_tower_from_the_table_up():
     assert P.stacked(["large", "small"])(rolled)
 
 
+def test_stands_in_needs_the_floor_upright_and_inside():
+    # bowl at (0.2, -0.1): floor 6 mm up, floor radius 3.9 cm; small cube 4 cm
+    floor = TABLE_TOP + 0.006 + 0.02
+    stands = P.stands_in("small", "bowl", gap=0.008)
+    assert stands(state(poses={"small": pose(0.2, -0.1, floor)}))
+    assert stands(state(poses={"small": pose(0.21, -0.09, floor + 0.005)}))
+    # held above the floor (not standing on it), or dropped beside the bowl on the table
+    assert not stands(state(poses={"small": pose(0.2, -0.1, floor + 0.02)}))
+    assert not stands(state(poses={"small": pose(0.32, -0.1, TABLE_TOP + 0.02)}))
+    # toppled in the bowl (leaning 30 degrees), or the bowl tipped over with the cube in it
+    leaning = pose(0.2, -0.1, floor + 0.01, quat_about("y", math.radians(30)))
+    assert not stands(state(poses={"small": leaning}))
+    tipped = quat_about("x", math.radians(20))
+    assert not stands(
+        state(poses={"bowl": pose(0.2, -0.1, TABLE_TOP, tipped), "small": pose(0.2, -0.1, floor)})
+    )
+    # under the bowl is not in it
+    assert not stands(state(poses={"small": pose(0.2, -0.1, TABLE_TOP - 0.02)}))
+
+
+def test_untouched_ignores_the_gripper_commands():
+    assert P.untouched("small")(state(openings=(0.0, 0.0)))
+    assert not P.untouched("small")(state(contacts={"small": {"left"}}))
+    assert P.untouched("small")(state(contacts={"large": {"right"}}, openings=(0.0, 1.0)))
+
+
 def test_held_by_side():
     held = state(openings=(0.0, 1.0), contacts={"small": {"left"}})
     assert P.held_by("small", "left")(held)

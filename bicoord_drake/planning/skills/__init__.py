@@ -17,7 +17,8 @@ module                    skills
 :mod:`.arm`               :func:`move`, :func:`move_tcp`, :func:`solve_tcp`, :func:`grip`,
                           :func:`lift`, :func:`retreat`,
                           :func:`tcp_deviation`
-:mod:`.pick_place`        :func:`pick`, :func:`place`, :func:`stabilize`, :func:`release`
+:mod:`.pick_place`        :func:`pick`, :func:`place`, :func:`carry_above`, :func:`stabilize`,
+                          :func:`release`
 :mod:`.tracking`          :func:`track` (a TCP path at every sample), :func:`push`
 :mod:`.pour`              :func:`pour` (tilt a held container about its rim and back)
 :mod:`.handover`          :func:`handover` (mid-air, both arms arrive at once; options for the
@@ -54,7 +55,7 @@ from bicoord_drake.planning.skills.handover import (
     handover,
     meet_motion,
 )
-from bicoord_drake.planning.skills.pick_place import pick, place, release, stabilize
+from bicoord_drake.planning.skills.pick_place import carry_above, pick, place, release, stabilize
 from bicoord_drake.planning.skills.pour import pour
 from bicoord_drake.planning.skills.shapes import half_extent
 from bicoord_drake.planning.skills.toss import least_spin_velocity, toss
@@ -65,6 +66,7 @@ __all__ = [
     "Motion",
     "ReceiverGrasps",
     "SkillContext",
+    "carry_above",
     "crossing_grasps",
     "fingers_cross",
     "grip",

@@ -2,6 +2,8 @@
 
 :func:`pick` tries grasp candidates (generated, or given for a part of a compound object)
 until one plans; :func:`place` tries the object's symmetric yaws about the goal;
+:func:`carry_above` brings the held object over a goal and stops there (a place in two halves,
+so the other arm can work below or finish first);
 :func:`stabilize` grasps an object where it stands and keeps still; :func:`release` opens
 the gripper where it is and backs off.
 """
@@ -166,6 +168,40 @@ def place(
     raise PlanningError(
         "place_failed",
         f"{side} cannot place {held.name!r} at "
+        f"{np.round(X_WO_goal.translation(), 3)} ({', '.join(reasons)})",
+    )
+
+
+def carry_above(
+    ctx: SkillContext,
+    side: str,
+    X_WO_goal: RigidTransform,
+    *,
+    height: float = 0.06,
+    ignore: Iterable[str] = (),
+) -> ArmPlan:
+    """Carry the held object to `height` (m) straight above `X_WO_goal` and stop there, still
+    held; the object's symmetric yaws about the goal are tried, most natural first (as
+    :func:`place` does, so a later ``place`` at the same goal starts right above it)."""
+    held = ctx.model.held.get(side)
+    if held is None:
+        raise PlanningError("gripper_empty", f"{side} holds nothing to carry")
+    shape = ctx.model.object(held.name).shape
+    base = arm_base(ctx.model.embodiment, side)
+    X_TO = RigidTransform([-ctx.model.embodiment.arm.gripper.tcp_x, 0, 0]) @ held.X_GO
+    reasons = []
+    for cand in place_candidates(X_TO, X_WO_goal, shape, base=base, lift=height):
+        try:
+            q_above = solve_tcp(ctx, side, TcpTarget(cand.X_WPre), ignore=list(ignore))
+        except PlanningError as err:
+            reasons.append(err.reason)
+            continue
+        plan = move(ctx, side, q_above, label=f"carry {held.name} above", ignore=list(ignore))
+        plan.label = f"carry {held.name} above {np.round(X_WO_goal.translation(), 3).tolist()}"
+        return plan
+    raise PlanningError(
+        "carry_failed",
+        f"{side} cannot hold {held.name!r} {height} m above "
         f"{np.round(X_WO_goal.translation(), 3)} ({', '.join(reasons)})",
     )
 

@@ -1,0 +1,384 @@
+"""place_plate_and_cup: set two places, the left arm laying each plate while the right arm
+brings its cup.
+
+Measurements of the expert in physics: benchmarks/bench_task_place_plate_and_cup.md.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import replace
+
+import numpy as np
+from pydrake.all import RigidTransform
+
+from bicoord_drake.models.geometry import Pose
+from bicoord_drake.models.objects import BowlShape, BoxShape, CylinderShape, SceneObject
+from bicoord_drake.models.scene import TABLE_TOP, Scene
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.grasps import (
+    Grasp,
+    arm_base,
+    cylinder_grasps,
+    stack_target,
+    table_target,
+)
+from bicoord_drake.planning.model import PlanningModel
+from bicoord_drake.planning.skills import (
+    ArmPlan,
+    Motion,
+    SkillContext,
+    carry_above,
+    hold,
+    merge,
+    pick,
+    place,
+    retreat,
+)
+from bicoord_drake.stages import Stage
+from bicoord_drake.stages.predicates import (
+    Predicate,
+    all_of,
+    any_of,
+    count_true,
+    hands_free,
+    lifted,
+    on_table,
+    settled,
+    stands_in,
+    untouched,
+    upright,
+    within_xy,
+)
+from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.registry import register_task
+
+#: A dish held by its rim: a straight 12 mm wall (what holds level in a rim grasp,
+#: benchmarks/bench_skills.md), 15 cm across, 3 cm high (a rim grasp needs > 2.25 cm).
+PLATE = BowlShape(radius=0.075, base_radius=0.075, height=0.03, wall=0.012, segments=12)
+PLATE_MASS = 0.10
+#: Hydroelastic mesh size of the plate (m): its 15 cm base is the costliest contact of the
+#: scene; 3 cm instead of the default 1 cm makes the physics ~35 % faster.
+PLATE_RESOLUTION = 0.03
+#: A cup: 7 cm across, 8 cm high, straight 12 mm wall, picked across its outside at the rim.
+CUP = BowlShape(radius=0.035, base_radius=0.035, height=0.08, wall=0.012, segments=12)
+CUP_MASS = 0.08
+#: Target 1 (left side) and target 2 (right side), table-centred (TASKS.md: (-0.12, -0.15) and
+#: (0.15, -0.15)), each jittered by up to TARGET_JITTER; the grey squares are TARGET wide.
+TARGETS = ((-0.12, -0.15), (0.15, -0.15))
+TARGET_JITTER = 0.015
+TARGET = 0.17
+#: Where plates (left half) and cups (right half) start, and their least spacing.
+PLATE_X, PLATE_Y, PLATE_GAP = (-0.32, -0.10), (-0.02, 0.09), 0.17
+CUP_X, CUP_Y, CUP_GAP = (0.08, 0.32), (-0.04, 0.09), 0.10
+#: A plate counts as on its target within this (m, xy), a cup as standing on the plate's floor
+#: when its bottom is at most CUP_GAP_Z above it.
+ON_TARGET = 0.03
+CUP_GAP_Z = 0.008
+#: Where the cup waits (offset of its bottom from the target and height above the plate's
+#: rim, m; the first that plans) while the plate is laid.
+HOVER_OFFSETS = (
+    (0.0, 0.0, 0.10),
+    (0.07, 0.0, 0.10),
+    (0.07, 0.05, 0.10),
+    (0.0, 0.08, 0.10),
+    (0.1, 0.0, 0.15),
+    (0.1, 0.08, 0.15),
+)
+SETTLE_STEPS = 8
+PLATE_COLORS = {
+    "white": (0.95, 0.95, 0.92, 1.0),
+    "cream": (0.95, 0.9, 0.78, 1.0),
+    "light blue": (0.75, 0.85, 0.95, 1.0),
+}
+CUP_COLORS = {
+    "red": (0.8, 0.2, 0.2, 1.0),
+    "blue": (0.2, 0.35, 0.8, 1.0),
+    "green": (0.25, 0.6, 0.3, 1.0),
+    "yellow": (0.9, 0.75, 0.2, 1.0),
+    "orange": (0.95, 0.5, 0.15, 1.0),
+}
+PLATES, CUPS = ("plate_0", "plate_1"), ("cup_0", "cup_1")
+
+
+@register_task
+class PlacePlateAndCup(Task):
+    """Set two places: each plate on a grey target with a cup standing on it.
+
+    Description: two dishes (15 cm, 3 cm high, straight 12 mm rim, 100 g) lie on the left half
+    and two cups (7 cm, 8 cm high, 80 g) stand on the right half; two grey 17 cm squares mark
+    the places, target 1 on the left near (-0.12, -0.15) and target 2 on the right near
+    (0.15, -0.15). The left arm lifts a plate by its rim while the right arm picks a cup from
+    above, across its outside, both at once; the left lays the plate on target 1 while the
+    right brings the cup over it and, as soon as the plate is down, sets the cup on it. While
+    the right sets the cup, the left picks the second plate; the left carries it over target 2
+    while the right picks the second cup; then the second place is set the same way. Layout as
+    in TASKS.md; the plates and cups start within y in [-0.04, 0.09] (within reach).
+
+    Randomization: plate positions (x in [-0.32, -0.10], y in [-0.02, 0.09], >= 17 cm apart)
+    and cup positions (x in [0.08, 0.32], y in [-0.04, 0.09], >= 10 cm apart and clear of
+    target 2); each target +-1.5 cm; the plates' colour and each cup's colour.
+
+    Stages: (1) a plate and a cup lifted together (transient); (2) one place set: a plate on a
+    target with a cup standing on it (0.5, persistent); (3) the next plate and cup lifted
+    together (transient); (4) both places set, both grippers open (0.5, persistent). A place is
+    set when the plate lies flat on the table within 3 cm of the target, the cup stands upright
+    inside it on its floor (bottom within 8 mm), no finger touches either and both have been at
+    rest for 0.3 s. Any plate with any cup sets either target.
+
+    Success: both targets hold a plate with a cup standing on it, released and at rest, both
+    grippers open, at the end.
+    """
+
+    name = "place_plate_and_cup"
+    step_limit = 700
+    instructions_seen = (
+        "Put each plate on a grey mark and set a cup on it.",
+        "Lay the two plates on the targets and place a cup on each plate.",
+        "Set two places: a plate on each grey square with a cup on top.",
+        "Place the plates on the grey targets and stand the cups on them.",
+        "Move both plates to the marked spots and put one cup on each.",
+        "Use the left hand for the plates and the right for the cups to set both places.",
+        "Lay out two plates on the grey squares, each with a cup standing on it.",
+    )
+    instructions_unseen = (
+        "Set the table for two: plates on the marks, a cup on every plate.",
+        "Put the dishes on the grey squares and a cup on each dish.",
+        "Arrange both plates on the targets and place the cups onto them.",
+        "Place a plate and then a cup on it at each of the two grey spots.",
+    )
+
+    # ---------------------------------------------------------------- scene
+    def sample_scene(self, seed: int) -> Scene:
+        rng = np.random.default_rng(seed)
+        jitter = rng.uniform(-TARGET_JITTER, TARGET_JITTER, size=(2, 2))
+        targets = [
+            _round((x + dx, y + dy)) for (x, y), (dx, dy) in zip(TARGETS, jitter, strict=True)
+        ]
+        plates = _spaced(rng, PLATE_X, PLATE_Y, PLATE_GAP, avoid=[])
+        cups = _spaced(rng, CUP_X, CUP_Y, CUP_GAP, avoid=[(targets[1], 0.13)])
+        plate_color = str(rng.choice(sorted(PLATE_COLORS)))
+        cup_colors = [str(c) for c in rng.choice(sorted(CUP_COLORS), size=2, replace=False)]
+        objects = [_target(f"target_{k}", xy) for k, xy in enumerate(targets)]
+        objects += [
+            _dish(name, PLATE, xy, PLATE_COLORS[plate_color], PLATE_MASS, PLATE_RESOLUTION)
+            for name, xy in zip(PLATES, plates, strict=True)
+        ]
+        objects += [
+            _dish(name, CUP, xy, CUP_COLORS[c], CUP_MASS)
+            for name, xy, c in zip(CUPS, cups, cup_colors, strict=True)
+        ]
+        return Scene(
+            name=self.name,
+            seed=seed,
+            objects=tuple(objects),
+            draws={
+                "target_xy": [list(xy) for xy in targets],
+                "plate_xy": [list(xy) for xy in plates],
+                "cup_xy": [list(xy) for xy in cups],
+                "plate_color": plate_color,
+                "cup_colors": cup_colors,
+            },
+        )
+
+    def object_count(self, scene: Scene) -> int:
+        return 4  # two plates, two cups
+
+    # ---------------------------------------------------------------- stages
+    def stages(self, scene: Scene) -> list[Stage]:
+        targets = [tuple(xy) for xy in scene.draws["target_xy"]]
+        places = [place_set(PLATES, CUPS, xy) for xy in targets]
+        return [
+            Stage(
+                "pick a plate and a cup",
+                "pick a plate by its rim",
+                "pick a cup from above",
+                0.0,
+                _plate_and_cup_lifted(),
+                "transient",
+            ),
+            Stage(
+                "set the first place",
+                "lay the plate on target 1",
+                "set the cup onto that plate as it lands",
+                0.5,
+                count_true(places, 1),
+                "persistent",
+            ),
+            Stage(
+                "pick the second plate and cup",
+                "pick the second plate, carry it over target 2",
+                "pick the second cup",
+                0.0,
+                _plate_and_cup_lifted(),
+                "transient",
+            ),
+            Stage(
+                "set the second place",
+                "lay the plate on target 2, retreat",
+                "set the cup onto that plate",
+                0.5,
+                all_of(count_true(places, 2), hands_free(PLATES + CUPS)),
+                "persistent",
+            ),
+        ]
+
+    # ---------------------------------------------------------------- expert
+    def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
+        ctx = SkillContext(PlanningModel(scene))
+        targets = [tuple(xy) for xy in scene.draws["target_xy"]]
+        plates = _order(scene, PLATES, targets[0])  # the nearer plate to target 1 first
+        cups = _order(scene, CUPS, targets[0])
+
+        def run(motion: Motion) -> Iterator[np.ndarray]:
+            yield from motion.actions()
+            poses = view.object_transforms()
+            ctx.sync(ctx.q, object_poses=poses)
+            ctx.refresh_grasps(poses)
+
+        def plate_goal(xy):
+            return table_target(xy, PLATE)
+
+        def cup_goal(plate: str) -> RigidTransform:
+            X_WP = view.object_transforms()[plate]
+            upright_plate = RigidTransform(X_WP.translation())
+            return stack_target(upright_plate, PLATE, CUP, yaw=0.0)
+
+        def hover(xy) -> ArmPlan:
+            """Right brings its cup over `xy` (or beside it, clear of the left gripper)."""
+            reasons = []
+            for dx, dy, dz in HOVER_OFFSETS:
+                goal = table_target(
+                    (xy[0] + dx, xy[1] + dy), CUP, support_z=TABLE_TOP + PLATE.height + dz
+                )
+                try:
+                    return carry_above(ctx, "right", goal, height=0.0)
+                except PlanningError as err:
+                    reasons.append(err.reason)
+            raise PlanningError("hover_failed", f"right cannot hold its cup near {xy} ({reasons})")
+
+        def pick_cup(name: str):
+            return pick(ctx, "right", name, grasps=cup_grasps(ctx, "right", name))
+
+        # ---- stage 1: left picks plate 1 by its rim, right picks cup 1
+        left = pick(ctx, "left", plates[0], kinds=["rim"])
+        right = pick_cup(cups[0])
+        yield from run(merge(ctx, left, right))
+        # ---- stage 2: left lays plate 1 on target 1, right holds cup 1 over it; then right
+        # sets the cup on the plate while left picks plate 2
+        left = place(ctx, "left", plate_goal(targets[0]))
+        right = hover(targets[0])
+        yield from run(merge(ctx, left, right))
+        # (left is planned first: it leaves the plate, so the cup's descent plans around
+        # where it goes; merge() delays the cup while the two would meet)
+        left = pick(ctx, "left", plates[1], kinds=["rim"])
+        right = place(ctx, "right", cup_goal(plates[0]))
+        yield from run(merge(ctx, left, right))
+        # ---- stage 3: left carries plate 2 over target 2 while right picks cup 2
+        # (right is planned first: it leaves plate 1 for its own side, out of the left arm's
+        # way across the table)
+        right = pick_cup(cups[1])
+        left = carry_above(ctx, "left", plate_goal(targets[1]), height=0.08)
+        yield from run(merge(ctx, left, right))
+        # ---- stage 4: left lays plate 2, right holds cup 2 over it, then sets it
+        left = place(ctx, "left", plate_goal(targets[1]))
+        right = hover(targets[1])
+        yield from run(merge(ctx, left, right))
+        left = retreat(ctx, "left")
+        right = place(ctx, "right", cup_goal(plates[1]))
+        yield from run(merge(ctx, left, right))
+        final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
+        yield from final.actions()
+
+
+# -------------------------------------------------------------------- expert helpers
+def cup_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
+    """Top-down grasps of an upright cup across its outside, pads on the outer wall from the
+    rim down (a rim grasp puts a finger inside the cup, which caught the inner wall and
+    lifted the cup again when backing off after the release), best first."""
+    X_WO = ctx.model.object_pose(name)
+    X_WC = X_WO @ RigidTransform([0.0, 0.0, CUP.height / 2])  # the solid's centre
+    solid = CylinderShape(radius=CUP.radius, length=CUP.height)
+    gripper = ctx.model.embodiment.arm.gripper
+    base = arm_base(ctx.model.embodiment, side)
+    grasps = cylinder_grasps(X_WC, solid, gripper, base=base, kinds=("top",))
+    X_OW = X_WO.inverse()
+    return [replace(g, X_OG=X_OW @ g.X_WG) for g in grasps]
+
+
+# -------------------------------------------------------------------- predicates
+def place_set(plates, cups, target_xy) -> Predicate:
+    """Some plate lies flat on the table within ON_TARGET of `target_xy` with some cup standing
+    upright on its floor, neither touched by a finger, both at rest for 0.3 s."""
+    pairs = []
+    for p in plates:
+        for c in cups:
+            pairs.append(
+                all_of(
+                    within_xy(p, target_xy, ON_TARGET),
+                    on_table(p, z_tol=0.01),
+                    upright(p, math.radians(10)),
+                    stands_in(c, p, gap=CUP_GAP_Z, max_tilt=math.radians(10)),
+                    untouched(p),
+                    untouched(c),
+                    settled([p, c]),
+                )
+            )
+    xy = tuple(round(float(v), 3) for v in target_xy)
+    pred = any_of(*pairs)
+    pred.name = f"place_set(target={xy})"
+    return pred
+
+
+def _plate_and_cup_lifted() -> Predicate:
+    """Some plate and some cup both raised at least 5 cm above where they started (a set
+    plate or a cup on it sits at most 1.2 cm higher than it started)."""
+    return all_of(
+        any_of(*[lifted(p, 0.05) for p in PLATES]), any_of(*[lifted(c, 0.05) for c in CUPS])
+    )
+
+
+# -------------------------------------------------------------------- scene helpers
+def _spaced(rng, xs, ys, gap, avoid) -> list[tuple[float, float]]:
+    """Two points in the box xs x ys at least `gap` apart and clear of every (point, distance)
+    in `avoid`, drawn until they are."""
+    while True:
+        pts = [_round((rng.uniform(*xs), rng.uniform(*ys))) for _ in range(2)]
+        if math.dist(*pts) < gap:
+            continue
+        if all(math.dist(p, a) >= d for p in pts for a, d in avoid):
+            return pts
+
+
+def _round(xy) -> tuple[float, float]:
+    """A drawn point as recorded (6 decimals), so the scene is rebuilt from its draws."""
+    return (round(float(xy[0]), 6), round(float(xy[1]), 6))
+
+
+def _order(scene: Scene, names, xy) -> list[str]:
+    """`names` sorted by distance from `xy` (nearest first)."""
+    return sorted(names, key=lambda n: math.dist(scene.object(n).pose.xyz[:2], xy))
+
+
+def _dish(name: str, shape: BowlShape, xy, color, mass: float, hint=None) -> SceneObject:
+    return SceneObject(
+        name=name,
+        shape=shape,
+        color=color,
+        mass=mass,
+        pose=Pose(xyz=(xy[0], xy[1], TABLE_TOP)),
+        resolution_hint=hint,
+    )
+
+
+def _target(name: str, xy) -> SceneObject:
+    """A flat grey square on the table: seen, never collided with."""
+    return SceneObject(
+        name=name,
+        shape=BoxShape(size=(TARGET, TARGET, 0.001)),
+        color=(0.55, 0.55, 0.55, 1.0),
+        fixed=True,
+        collide=False,
+        pose=Pose(xyz=(xy[0], xy[1], TABLE_TOP + 0.0005)),
+    )
