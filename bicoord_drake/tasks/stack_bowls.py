@@ -117,6 +117,7 @@ class StackBowls(Task):
 
     name = "stack_bowls"
     step_limit = 900
+    ci_seed = 0
     instructions_seen = (
         "Stack the four bowls inside each other on the grey square.",
         "Nest all the bowls into one stack on the grey mark.",
