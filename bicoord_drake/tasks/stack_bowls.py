@@ -81,8 +81,15 @@ SPOT_DROP = 0.004
 NEST_DROP = 0.004
 #: Control steps over which a gripper lets go of a nested bowl (a fast opening pushes it aside).
 RELEASE_STEPS = 10
+NEST = {"release_steps": RELEASE_STEPS}
 #: Where an arm holding the next bowl waits: TCP at |x|, y past the spot, z above the table.
 WAIT_AT = (0.3, 0.14, 0.18)
+#: While one arm leaves the stack and the other brings the next bowl, the bringing arm's TCP
+#: comes within CLEAR_RADIUS (xy, m) of the spot only CLEAR_STEPS after the leaving arm's TCP
+#: has gone out of it (merge's collision check leaves out a bowl that is let go within the
+#: motion, so it cannot see the carried bowl hit the leaving gripper).
+CLEAR_RADIUS = 0.15
+CLEAR_STEPS = 3
 #: Control steps both arms hold still at the end: the stack must be seen at rest for 0.3 s.
 SETTLE_STEPS = 8
 
@@ -232,6 +239,9 @@ class StackBowls(Task):
         def both(plans: dict[str, ArmPlan]) -> Motion:
             return merge(ctx, plans["left"], plans["right"])
 
+        def swap(leaver: ArmPlan, placer: ArmPlan) -> Motion:
+            return _leave_then_enter(ctx, leaver, placer)
+
         # ---- stage 1: both arms pick the bowl nearer the spot on their side
         plans = {first: _pick(ctx, first, b1)}
         plans[second] = _pick(ctx, second, b2)
@@ -242,17 +252,14 @@ class StackBowls(Task):
         plans[first] = place(ctx, first, _spot_goal(), release_steps=RELEASE_STEPS)
         yield from run(both(plans))
         # ---- stage 3: the first arm leaves to pick its second bowl; the other nests its bowl
-        plans = {first: _pick(ctx, first, b3)}
-        plans[second] = place(ctx, second, _nest_goal(ctx, b1), release_steps=RELEASE_STEPS)
-        yield from run(both(plans))
+        leaver = _pick(ctx, first, b3)
+        yield from run(swap(leaver, place(ctx, second, _nest_goal(ctx, b1), **NEST)))
         # ---- stage 4: the second arm leaves to pick its last bowl; the first nests its bowl
-        plans = {second: _pick(ctx, second, b4)}
-        plans[first] = place(ctx, first, _nest_goal(ctx, b2), release_steps=RELEASE_STEPS)
-        yield from run(both(plans))
+        leaver = _pick(ctx, second, b4)
+        yield from run(swap(leaver, place(ctx, first, _nest_goal(ctx, b2), **NEST)))
         # ---- stage 5: the first arm retreats while the second nests the last bowl
-        plans = {first: retreat(ctx, first)}
-        plans[second] = place(ctx, second, _nest_goal(ctx, b3), release_steps=RELEASE_STEPS)
-        yield from run(both(plans))
+        leaver = retreat(ctx, first)
+        yield from run(swap(leaver, place(ctx, second, _nest_goal(ctx, b3), **NEST)))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
@@ -336,6 +343,28 @@ def _nest_goal(ctx: SkillContext, lower: str) -> RigidTransform:
     """Upright pose a bowl is let go at to nest in `lower` (measured at the last sync)."""
     p = ctx.model.object_pose(lower).translation()
     return RigidTransform(RotationMatrix(), [p[0], p[1], p[2] + NEST_RISE + NEST_DROP])
+
+
+def _leave_then_enter(ctx: SkillContext, leaver: ArmPlan, placer: ArmPlan) -> Motion:
+    """Both plans at once, each at its own pace, the placer held back until the leaver's TCP
+    is out of CLEAR_RADIUS around the spot (for CLEAR_STEPS) before the placer's comes in."""
+    out = _first_step(ctx, leaver, inside=False)
+    into = _first_step(ctx, placer, inside=True)
+    plans = {leaver.side: leaver, placer.side: placer.delayed(out + CLEAR_STEPS - into)}
+    return merge(ctx, plans["left"], plans["right"], stretch=False)
+
+
+def _first_step(ctx: SkillContext, plan: ArmPlan, inside: bool) -> int:
+    """First sample of `plan` whose TCP is inside (or outside) CLEAR_RADIUS of the spot in xy;
+    the plan's length if there is none."""
+    q12 = np.array(ctx.q, dtype=float)
+    cols = ctx.model.side_slice(plan.side)
+    for i, q in enumerate(plan.q):
+        q12[cols] = q
+        p = ctx.model.tcp_pose(q12, plan.side).translation()
+        if (np.hypot(p[0] - SPOT_XY[0], p[1] - SPOT_XY[1]) <= CLEAR_RADIUS) == inside:
+            return i
+    return plan.num_steps
 
 
 def _wait(ctx: SkillContext, side: str) -> ArmPlan:
