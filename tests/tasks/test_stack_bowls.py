@@ -8,6 +8,8 @@ import pytest
 import bicoord_drake.tasks.stack_bowls as sb
 from bicoord_drake.config import StationConfig
 from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.planning.model import PlanningModel
+from bicoord_drake.planning.skills import SkillContext, move_tcp, retreat
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.stages.predicates import reset_predicate
@@ -168,6 +170,39 @@ def test_stages_count_only_in_order(task, scene):
         monitor.update(replace(four, step=k, time=k / 15))
     monitor.finish(replace(four, step=10, time=10 / 15))
     assert monitor.completed() == [False] * 5 and monitor.score() == 0.0
+
+
+# ------------------------------------------------------------------ expert helpers
+def _tcp_xy_dist(ctx, motion, side):
+    cols = ctx.model.side_slice(side)
+    q12 = np.array(ctx.q, dtype=float)
+    out = []
+    for q in motion.q:
+        q12[cols] = q[cols]
+        p = ctx.model.tcp_pose(q12, side).translation()
+        out.append(np.hypot(p[0] - sb.SPOT_XY[0], p[1] - sb.SPOT_XY[1]))
+    return np.array(out)
+
+
+def test_bringing_arm_enters_the_stack_only_after_the_other_left(scene):
+    """The right arm leaves the spot while the left comes to it: the left TCP is inside the
+    clear circle only CLEAR_STEPS after the right TCP went out of it."""
+    ctx = SkillContext(PlanningModel(scene))
+    above = [sb.SPOT_XY[0], sb.SPOT_XY[1], TABLE_TOP + 0.2]
+
+    def to_spot(side):
+        X = ctx.model.tcp_pose(ctx.q, side)
+        return move_tcp(ctx, side, type(X)(X.rotation(), above))
+
+    to_spot("right")  # the right arm's TCP above the spot; it leaves from there
+    leave = retreat(ctx, "right")
+    motion = sb._leave_then_enter(ctx, leave, to_spot("left"))
+    right, left = _tcp_xy_dist(ctx, motion, "right"), _tcp_xy_dist(ctx, motion, "left")
+    assert right[0] <= sb.CLEAR_RADIUS and left[-1] <= sb.CLEAR_RADIUS
+    out = int(np.argmax(right > sb.CLEAR_RADIUS))
+    into = int(np.argmax(left <= sb.CLEAR_RADIUS))
+    assert into >= out + sb.CLEAR_STEPS
+    assert np.all(right[into:] > sb.CLEAR_RADIUS)
 
 
 # ------------------------------------------------------------------ physics
