@@ -66,6 +66,7 @@ class GraspParams:
     support_z: float = TABLE_TOP  # height of the surface the object rests on
     depth: float | None = None  # top grasps: TCP below the top face; None = pads flush with it
     rim_depth: float = 0.003  # rim grasps: pad top this far below the rim
+    rim_lean: bool = False  # rim grasps: approach along a flared wall, pads flat on it
     n_yaw: int = 8  # samples around round shapes
     allow_from_below: bool = False  # keep approaches that point upward
 
@@ -357,7 +358,8 @@ def bowl_rim_grasps(
     The approach is along the bowl's -axis (down for an upright bowl); the fingers straddle the
     wall radially. The pads sit `rim_depth` below the rim; since the wall leans outward, the TCP
     follows the wall's mid-surface at the pads' height and the width covers the lean over the pad
-    length.
+    length. With ``params.rim_lean`` the approach runs down the wall's slant instead (tipped
+    outward by the wall's lean), so the pads lie flat on the wall and hold it upright.
     """
     R = X_WO.rotation().matrix()
     o = X_WO.translation()
@@ -373,12 +375,18 @@ def bowl_rim_grasps(
     # Mid-surface of the wall: radius - wall/2 at the rim, leaning in by tan(tilt) per metre down.
     r_mid = shape.radius - shape.wall / 2 - (h - z) * np.tan(tilt)
     width = shape.wall / np.cos(tilt) + pad * np.tan(tilt)
+    if params.rim_lean:  # pads parallel to the wall: they grip it flat across its thickness
+        width = shape.wall
     out = []
     for a in 2 * np.pi * np.arange(params.n_yaw) / params.n_yaw:
         radial = np.cos(a) * u + np.sin(a) * w
         p = o + n * z + radial * r_mid
+        approach, across = -n, radial
+        if params.rim_lean:  # down the wall: tipped outward at the top by the wall's lean
+            approach = -np.cos(tilt) * n - np.sin(tilt) * radial
+            across = np.cos(tilt) * radial - np.sin(tilt) * n
         for s in (1.0, -1.0):
-            out.append(_make("rim", X_WO, -n, s * radial, p, width, gripper, params, base))
+            out.append(_make("rim", X_WO, approach, s * across, p, width, gripper, params, base))
     return _rank(out)
 
 

@@ -16,6 +16,7 @@ TASK_MODULES: tuple[str, ...] = (
     "handover_block_with_bowls",
     "jigsaw",
     "place_plate_and_cup",
+    "stack_bowls",
 )
 
 for _module in TASK_MODULES:

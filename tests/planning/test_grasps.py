@@ -248,6 +248,32 @@ def test_bowl_rim_fingers_straddle_the_wall(gripper):
         assert g.width >= shape.wall / np.cos(tilt) + gripper.pad_length * np.tan(tilt) - 1e-12
 
 
+def test_leaning_rim_grasp_lies_flat_on_a_flared_wall(gripper):
+    shape = BowlShape(radius=0.058, base_radius=0.045, height=0.05, wall=0.009)
+    X_WO = RigidTransform(RotationMatrix.MakeZRotation(0.4), [0.1, 0.0, TABLE_TOP])
+    tilt = np.arctan2(shape.radius - shape.base_radius, shape.height)
+    upright = bowl_rim_grasps(X_WO, shape, gripper)
+    grasps = bowl_rim_grasps(X_WO, shape, gripper, params=GraspParams(rim_lean=True))
+    assert len(grasps) == len(upright) > 0
+    centre = X_WO.translation()
+    for g in grasps:
+        radial = g.X_WG.translation() - centre
+        radial[2] = 0.0
+        radial /= np.linalg.norm(radial)
+        # down the wall's slant: tipped outward at the top by the wall's lean
+        assert g.approach @ DOWN == pytest.approx(np.cos(tilt))
+        assert g.approach @ radial == pytest.approx(-np.sin(tilt))
+        # the fingers close across the wall, perpendicular to it; the jaw holds its thickness
+        wall_dir = np.cos(tilt) * np.array([0, 0, 1.0]) + np.sin(tilt) * radial
+        assert abs(g.finger_axis @ wall_dir) == pytest.approx(0.0, abs=1e-9)
+        assert g.width == pytest.approx(shape.wall)
+    # the default grasps are unchanged: vertical approach
+    assert all(np.allclose(g.approach, DOWN) for g in upright)
+    # a wall thinner than the closed jaw cannot be gripped flat
+    thin = BowlShape(radius=0.058, base_radius=0.045, height=0.05, wall=0.006)
+    assert bowl_rim_grasps(X_WO, thin, gripper, params=GraspParams(rim_lean=True)) == []
+
+
 # --------------------------------------------------------------------------------------------
 # Handles
 # --------------------------------------------------------------------------------------------
