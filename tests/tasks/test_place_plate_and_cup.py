@@ -3,7 +3,6 @@ expert in physics."""
 
 import math
 
-import numpy as np
 import pytest
 
 import bicoord_drake.tasks.place_plate_and_cup as ppc
@@ -12,7 +11,7 @@ from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.tasks.base import check_task_class
-from tests.stages.helpers import pose, quat_about
+from tests.stages.helpers import pose, quat_about, state
 
 PLATE_Z = TABLE_TOP
 CUP_ON_PLATE_Z = TABLE_TOP + ppc.PLATE.wall
@@ -59,21 +58,6 @@ def test_draws_stay_in_their_ranges_and_rebuild_the_scene(task, seed):
         assert sc.object(name).pose.xyz[:2] == tuple(xy)
 
 
-def _state(scene, poses=None, contacts=None, openings=(1.0, 1.0), step=0, velocities=None):
-    base = WorldState.initial(scene)
-    action = np.zeros(14)
-    action[6], action[13] = openings
-    return WorldState(
-        scene=scene,
-        step=step,
-        time=step / 15,
-        object_poses={**base.object_poses, **(poses or {})},
-        action=action,
-        contacts=contacts or {},
-        object_velocities={**base.object_velocities, **(velocities or {})},
-    )
-
-
 def _set(scene, k, plate, cup, dxy=(0.0, 0.0), cup_dxy=(0.0, 0.0), cup_dz=0.0, cup_quat=None):
     """Poses of `plate` on target k (shifted by dxy) with `cup` standing on it."""
     x, y = scene.draws["target_xy"][k]
@@ -88,7 +72,7 @@ def _run(task, scene, frames):
     """Stage values counted by a monitor over `frames` (kwargs of _state), 0.1 s apart."""
     monitor = StageMonitor(task.stages(scene))
     for k, kw in enumerate(frames):
-        monitor.update(_state(scene, step=k * 2, **kw))  # 2 control steps = 0.13 s apart
+        monitor.update(state(scene, step=k * 2, **kw))  # 2 control steps = 0.13 s apart
     monitor.finish()
     return monitor
 
@@ -110,7 +94,9 @@ def test_a_place_is_recognized_and_not_fooled(task, scene):
 
     def ok(poses, contacts=None, steps=4):
         place.reset()
-        return [place(_state(scene, poses, contacts, step=2 * k)) for k in range(steps)][-1]
+        return [
+            place(state(scene, poses=poses, contacts=contacts, step=2 * k)) for k in range(steps)
+        ][-1]
 
     assert ok(_set(scene, 0, "plate_0", "cup_1"))  # any plate with any cup
     assert ok(_set(scene, 0, "plate_1", "cup_0", dxy=(0.02, -0.01), cup_dxy=(0.02, 0.0)))
