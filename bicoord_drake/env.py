@@ -92,8 +92,8 @@ def make_env(
     `resolution` is ``"WxH"`` or ``(W, H)``; `render=False` drops the cameras (states only, much
     faster); `fps` is the control rate; `step_limit` overrides the task's (TASKS.md); `data` is
     where ``reset(seed, stage=k)`` finds the demonstration of `seed`; `randomize` gives every
-    scene its seed's randomized appearance from `split`'s textures (a demonstration's scene
-    keeps its own).
+    scene its seed's randomization (`split`'s textures, lights, table height, clutter; a
+    demonstration's scene keeps its own).
     """
     if action_mode not in ACTION_SIZES:
         raise ValueError(f"action_mode must be 'qpos' or 'endpose', got {action_mode!r}")

@@ -61,7 +61,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--randomize",
         action="store_true",
-        help="randomized textures, lights and head-camera pose (from --split's texture set)",
+        help="randomized textures (from --split's set), lights, table height, head-camera pose and "
+        "distractor objects",
     )
     parser.add_argument(
         "--split",

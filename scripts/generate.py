@@ -54,7 +54,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--randomize",
         action="store_true",
-        help="randomized table and floor textures (seen set), lights and head-camera pose",
+        help="randomized textures (seen set), lights, table height, head-camera pose and 2-8 "
+        "distractor objects",
     )
     parser.add_argument(
         "--config-name",

@@ -274,6 +274,11 @@ class EpisodeRecorder:
         """The recorded actions, (T, 14) float64 (a copy)."""
         return np.array(self._action, dtype=np.float64).reshape(len(self), ACTION_SIZE)
 
+    @property
+    def joint_states(self) -> np.ndarray:
+        """The measured joint states, (T, 14) float64 (a copy)."""
+        return np.array(self._joint_state, dtype=np.float64).reshape(len(self), -1)
+
     def add_frame(
         self,
         *,

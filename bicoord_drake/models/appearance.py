@@ -1,4 +1,4 @@
-"""How a scene looks: table and floor textures, lights and the head camera's jitter.
+"""How a scene looks: table and floor textures, lights, table height and the head camera's jitter.
 
 An :class:`Appearance` changes nothing the physics or the expert sees: it is drawn per episode
 (:func:`sample_appearance`) from the seed on its own random stream, stored in the scene (and
@@ -97,6 +97,14 @@ class Appearance(BaseModel):
     head_camera_tilt: tuple[float, float] = Field(
         (0.0, 0.0), description="added to its viewing direction's pitch and yaw, rad"
     )
+    table_raise: float = Field(
+        0.0,
+        ge=-0.03,
+        le=0.03,
+        description="how much higher the table (with the arms on it) stands above the floor "
+        "than the default, m; the world frame stays on the table (top at z = 0.75), so the "
+        "floor and the world-fixed head camera move down by this much instead",
+    )
 
 
 def sample_appearance(seed: int, split: Split = "seen") -> Appearance:
@@ -147,6 +155,7 @@ def sample_appearance(seed: int, split: Split = "seen") -> Appearance:
         lights=tuple(lights),
         head_camera_offset=tuple(round(float(v), 4) for v in rng.uniform(-0.02, 0.02, 3)),
         head_camera_tilt=tuple(round(float(v), 4) for v in rng.uniform(-0.03, 0.03, 2)),
+        table_raise=round(float(rng.uniform(-0.03, 0.03)), 4),
     )
 
 

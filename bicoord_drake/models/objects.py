@@ -147,8 +147,44 @@ class CompoundShape(_Shape):
         )
 
 
+class MugShape(_Shape):
+    """A mug: an open cup with a handle on its +x side; frame at the centre of its underside.
+
+    It collides as a closed cylinder and a handle bar (a distractor nothing is put into); its
+    visual shows the cavity.
+    """
+
+    kind: Literal["mug"] = "mug"
+    radius: float = Field(gt=0, description="outer radius, m")
+    height: float = Field(gt=0)
+    wall: float = Field(0.005, gt=0)
+
+    def _handle(self) -> Primitive:
+        t = 0.012  # handle thickness
+        return Primitive(
+            kind="box",
+            size=(0.025, t, 0.6 * self.height),
+            pose=Pose(xyz=(self.radius + 0.0125 - self.wall, 0.0, 0.5 * self.height)),
+        )
+
+    def primitives(self) -> list[Primitive]:
+        body = Primitive(
+            kind="cylinder",
+            size=(self.radius, self.height),
+            pose=Pose(xyz=(0.0, 0.0, self.height / 2)),
+        )
+        return [body, self._handle()]
+
+    def visual_mesh(self) -> trimesh.Trimesh:
+        r, h, w = self.radius, self.height, self.wall
+        profile = np.array([[0.0, 0.0], [r, 0.0], [r, h], [r - w, h], [r - w, w], [0.0, w]])
+        cup = trimesh.creation.revolve(profile, sections=40)
+        return trimesh.util.concatenate([cup, self._handle().trimesh(smooth=0.004)])
+
+
 Shape = Annotated[
-    BoxShape | CylinderShape | SphereShape | BowlShape | CompoundShape, Field(discriminator="kind")
+    BoxShape | CylinderShape | SphereShape | BowlShape | CompoundShape | MugShape,
+    Field(discriminator="kind"),
 ]
 
 
@@ -168,6 +204,9 @@ class SceneObject(BaseModel):
     hydroelastic_modulus: float = Field(1e6, gt=0)
     resolution_hint: float | None = Field(
         None, gt=0, description="hydroelastic mesh size, m (default: from the shape)"
+    )
+    distractor: bool = Field(
+        False, description="clutter added by randomization: a real body, but not part of the task"
     )
 
 

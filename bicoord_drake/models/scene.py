@@ -12,6 +12,7 @@ from collections.abc import Callable
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from bicoord_drake.models.appearance import Appearance, Split, sample_appearance
+from bicoord_drake.models.clutter import sample_clutter
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
 
@@ -43,15 +44,31 @@ class Scene(BaseModel):
         return self
 
     def randomized(self, split: Split = "seen") -> Scene:
-        """This scene with the randomized appearance of its seed for `split` (textures from
-        that split, lights, head-camera jitter); objects and poses unchanged."""
+        """This scene randomized from its seed: the appearance of `split` (textures from that
+        split, lights, table height, head-camera jitter) and 2-8 distractors placed clear of
+        the task's objects (:func:`~bicoord_drake.models.clutter.sample_clutter`); the task's
+        objects and poses unchanged. Randomizing twice is an error."""
         if self.seed is None:
             raise ValueError("only a scene drawn from a seed can be randomized")
-        return self.model_copy(update={"appearance": sample_appearance(self.seed, split)})
+        if self.appearance is not None or self.distractors:
+            raise ValueError(f"scene {self.name!r} (seed {self.seed}) is already randomized")
+        clutter = sample_clutter(self.seed, self.objects, TABLE_TOP)
+        return self.model_copy(
+            update={
+                "appearance": sample_appearance(self.seed, split),
+                "objects": self.objects + clutter,
+            }
+        )
 
     @property
     def free_objects(self) -> list[SceneObject]:
-        return [o for o in self.objects if not o.fixed]
+        """The task's movable objects (fixtures and distractors left out)."""
+        return [o for o in self.objects if not o.fixed and not o.distractor]
+
+    @property
+    def distractors(self) -> list[SceneObject]:
+        """Clutter added by :meth:`randomized`: real bodies no task counts."""
+        return [o for o in self.objects if o.distractor]
 
     def object(self, name: str) -> SceneObject:
         for o in self.objects:

@@ -24,23 +24,24 @@ def _box_visual(name: str, prim: Primitive, rgba, texture: Path | None = None) -
 
 def table_sdf(appearance: Appearance | None = None) -> str:
     """SDFormat of a static model `table` (top + legs) and a floor slab, plain or with the
-    appearance's table and floor textures."""
+    appearance's table and floor textures and table height (the floor `table_raise` lower)."""
     table_png = appearance.table.png() if appearance else None
     floor_png = appearance.floor.png() if appearance else None
+    floor_z = -appearance.table_raise if appearance else 0.0  # a higher table: a lower floor
     sx, sy = TABLE_SIZE
     top = Primitive(
         kind="box",
         size=(sx, sy, TABLE_THICKNESS),
         pose=Pose(xyz=(0, 0, TABLE_TOP - TABLE_THICKNESS / 2)),
     )
-    floor = Primitive(kind="box", size=(4.0, 4.0, 0.02), pose=Pose(xyz=(0, 0, -0.01)))
+    floor = Primitive(kind="box", size=(4.0, 4.0, 0.02), pose=Pose(xyz=(0, 0, floor_z - 0.01)))
     rigid = ContactProps(friction=0.8, hydroelastic="rigid", resolution_hint=0.05)
     parts = [
         '<link name="table_top">',
         sdf_collision("top", top, rigid),
         _box_visual("top", top, (0.62, 0.5, 0.38, 1), table_png),
     ]
-    leg_h = TABLE_TOP - TABLE_THICKNESS
+    leg_h = TABLE_TOP - TABLE_THICKNESS - floor_z
     for i, (x, y) in enumerate(
         [
             (sx / 2 - 0.05, sy / 2 - 0.05),
@@ -49,7 +50,9 @@ def table_sdf(appearance: Appearance | None = None) -> str:
             (-sx / 2 + 0.05, -sy / 2 + 0.05),
         ]
     ):
-        leg = Primitive(kind="box", size=(0.05, 0.05, leg_h), pose=Pose(xyz=(x, y, leg_h / 2)))
+        leg = Primitive(
+            kind="box", size=(0.05, 0.05, leg_h), pose=Pose(xyz=(x, y, floor_z + leg_h / 2))
+        )
         parts.append(_box_visual(f"leg_{i}", leg, (0.4, 0.32, 0.24, 1)))
     parts += [
         sdf_collision("floor", floor, rigid),

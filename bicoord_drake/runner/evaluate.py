@@ -86,7 +86,9 @@ class EvaluateConfig(BaseModel):
     resolution: str = "320x240"
     render: bool = True
     depth: bool = False
-    randomize: bool = Field(False, description="randomized textures, lights, camera jitter")
+    randomize: bool = Field(
+        False, description="randomized textures, lights, table height, camera jitter, clutter"
+    )
     split: Literal["seen", "unseen"] = Field(
         "unseen", description="instructions and (with randomize) textures of this split"
     )

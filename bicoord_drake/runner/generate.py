@@ -86,7 +86,9 @@ class GenerateConfig(BaseModel):
     fps: float = Field(15.0, gt=0, le=100, description="control and recording rate, Hz")
     depth: bool = False
     render: bool = True
-    randomize: bool = Field(False, description="randomized textures, lights, camera jitter")
+    randomize: bool = Field(
+        False, description="randomized textures, lights, table height, camera jitter, clutter"
+    )
     config_name: str = Field("default", pattern=r"^[A-Za-z0-9_.-]+$")
     max_tries: int = Field(0, ge=0, description="give up after this many seeds (0: 5x episodes)")
     video: bool = True

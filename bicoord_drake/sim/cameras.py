@@ -70,10 +70,12 @@ def look_at(eye, target, up=(0.0, 0.0, 1.0)) -> RigidTransform:
 def camera_mounts(
     embodiment: Embodiment, config: CameraConfig, appearance: Appearance | None = None
 ) -> list[CameraMount]:
-    """The mounts of the configured cameras (the head camera jittered by `appearance`)."""
+    """The mounts of the configured cameras (the head camera jittered by `appearance` and
+    lowered by its `table_raise`: the camera stands on the floor, the world frame on the table)."""
     eye, direction = np.array(HEAD_EYE), np.array(HEAD_DIRECTION)
     if appearance is not None:
         eye = eye + appearance.head_camera_offset
+        eye[2] -= appearance.table_raise  # fixed to the floor, which a higher table lowers
         pitch, yaw = appearance.head_camera_tilt
         direction = (
             RotationMatrix.MakeZRotation(yaw) @ RotationMatrix.MakeXRotation(pitch) @ direction

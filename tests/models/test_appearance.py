@@ -66,7 +66,8 @@ def test_texture_images_are_patterned_in_their_palette_and_cached(kind, tmp_path
 def test_randomizing_keeps_the_tasks_scene_and_survives_a_json_round_trip():
     scene = get_task("jigsaw").sample_scene(4)
     randomized = scene.randomized("unseen")
-    assert randomized.objects == scene.objects and randomized.draws == scene.draws
+    assert randomized.objects[: len(scene.objects)] == scene.objects  # clutter comes after
+    assert randomized.draws == scene.draws
     assert randomized.appearance.split == "unseen"
     assert Scene.model_validate_json(randomized.model_dump_json()) == randomized
     with pytest.raises(ValueError, match="drawn from a seed"):
