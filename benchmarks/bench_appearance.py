@@ -3,8 +3,8 @@
     python benchmarks/bench_appearance.py [--tasks all] [--seeds 16] [--repeats 20] \\
         [--out benchmarks/appearance]
 
-For every task: ``<out>/<task>.jpg``, the first head-camera frame of seeds 0..N-1 with their
-randomized appearance (seen split; the last row from the unseen split), 4 per row. Then, on one
+For every task: ``<out>/<task>.jpg``, the first head-camera frame of seeds 0..N-1 randomized
+(appearance, table height, clutter) (seen split; the last row from the unseen split), 4 per row. Then, on one
 scene, the median wall time of one frame of the three 320x240 cameras (arms moving between
 frames) for: the plain look, randomized, and randomized with shadows (``CameraConfig.shadows``).
 """
@@ -62,11 +62,16 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=16)
     parser.add_argument("--repeats", type=int, default=20)
     parser.add_argument("--out", type=Path, default=Path("benchmarks/appearance"))
+    parser.add_argument(
+        "--sheets-only", action="store_true", help="contact sheets only, no render-cost timing"
+    )
     args = parser.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)
     tasks = list_tasks() if args.tasks == "all" else args.tasks.split(",")
     for task in tasks:
         print(contact_sheet(task, args.seeds, args.out), flush=True)
+    if args.sheets_only:
+        return
 
     scene = get_task(tasks[0]).sample_scene(0)
     shadows = StationConfig(cameras=CameraConfig(shadows=True))
