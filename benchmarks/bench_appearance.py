@@ -4,9 +4,10 @@
         [--out benchmarks/appearance]
 
 For every task: ``<out>/<task>.jpg``, the first head-camera frame of seeds 0..N-1 randomized
-(appearance, table height, clutter) (seen split; the last row from the unseen split), 4 per row. Then, on one
-scene, the median wall time of one frame of the three 320x240 cameras (arms moving between
-frames) for: the plain look, randomized, and randomized with shadows (``CameraConfig.shadows``).
+(appearance, table height, clutter; seen split, the last row from the unseen split), 4 per row.
+Then (unless ``--sheets-only``), on one scene, the median wall time of one frame of the three
+320x240 cameras (arms moving between frames) for: the plain look, randomized, and randomized
+with shadows (``CameraConfig.shadows``).
 """
 
 from __future__ import annotations
