@@ -33,7 +33,8 @@ module                    skills
 ========================  ===================================================================
 
 Every planning failure raises :class:`~bicoord_drake.planning.errors.PlanningError` with a
-reason; the two-arm skills (handover, toss) leave the context unchanged when they fail.
+reason; the two-arm skills (handover, toss, the ``*_together`` skills) leave the context
+unchanged when they fail.
 
 >>> ctx = SkillContext(PlanningModel(scene))                            # doctest: +SKIP
 >>> left = pick(ctx, "left", "cube_a")

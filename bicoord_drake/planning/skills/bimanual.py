@@ -16,8 +16,9 @@ A long object (a roller, a beam, a pot by its two handles) is held by both gripp
 - :func:`release_together` opens both grippers on the same steps and backs both off at once.
 
 Each returns a :class:`~bicoord_drake.planning.skills.core.Motion` (both arms) and advances the
-context; the model holds the object with both hands (``PlanningModel.attach_both``) between
-:func:`pick_together` and :func:`release_together`.
+context (on a planning failure it is left unchanged); the model holds the object with both
+hands (``PlanningModel.attach_both``) between :func:`pick_together` and
+:func:`release_together`.
 """
 
 from __future__ import annotations
@@ -359,17 +360,18 @@ def release_together(
     if name is None:
         raise PlanningError("not_held_together", "the hands do not hold one object to release")
     X_WO = ctx.model.held_pose("left", ctx.q)
-    opened = grip_together(ctx, opening, ramp_steps=ramp_steps, label="open together")
-    ctx.model.detach_both(X_WO=X_WO)
-    away = {}
-    for side in SIDES:
-        X = ctx.model.tcp_pose(ctx.q, side)
-        away[side] = RigidTransform(X.rotation(), X.translation() - back * X.rotation().col(0))
-    free = [name, *ignore]
-    q_away = _solve_pair(
-        ctx, away["left"], away["right"], seed=ctx.q, ignore=free, env_clearance=0.0
-    )
-    back_off = _straight_together(ctx, q_away, label="back off together", ignore=free)
+    with ctx.transaction():
+        opened = grip_together(ctx, opening, ramp_steps=ramp_steps, label="open together")
+        ctx.model.detach_both(X_WO=X_WO)
+        away = {}
+        for side in SIDES:
+            X = ctx.model.tcp_pose(ctx.q, side)
+            away[side] = RigidTransform(X.rotation(), X.translation() - back * X.rotation().col(0))
+        free = [name, *ignore]
+        q_away = _solve_pair(
+            ctx, away["left"], away["right"], seed=ctx.q, ignore=free, env_clearance=0.0
+        )
+        back_off = _straight_together(ctx, q_away, label="back off together", ignore=free)
     motion = opened.then(back_off)
     i = opened.num_steps - 1
     motion.events = sorted(motion.events + [(i, side, "detach", name) for side in SIDES])
