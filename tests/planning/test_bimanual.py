@@ -71,6 +71,8 @@ def test_a_two_handed_hold_filters_the_object_against_both_hands(ctx):
     assert m.held_together == "bar" and m.holders("bar") == ["left", "right"]
     m.set_padding(0.03, 0.005)
     assert m.collision_free(q_up)
+    # still checked against the world: lying on the table it is within the 5 mm margin
+    assert any("table" in a + b for a, b, _ in m.colliding_pairs(q))
     with pytest.raises(PlanningError) as err:
         m.attach("bar", "left", q_up)
     assert err.value.reason == "gripper_busy"
@@ -149,6 +151,15 @@ def test_carry_together_holds_the_relative_tcp_pose_on_one_timing(ctx):
     assert release.openings[r, 0] == 1.0 and release.openings[6, 0] == 1.0
     assert release.openings[5, 0] < 1.0
     assert not ctx.model.held
+
+
+def test_one_arm_cannot_move_alone_while_both_hold(ctx):
+    sk.pick_together(ctx, "bar", lift=0.05)
+    q = ctx.q.copy()
+    X = ctx.model.tcp_pose(q, "left")
+    with pytest.raises(PlanningError) as err:
+        sk.move_tcp(ctx, "left", RigidTransform(X.rotation(), X.translation() + [0, 0, 0.05]))
+    assert err.value.reason == "held_together" and np.array_equal(ctx.q, q)
 
 
 def test_carry_together_needs_a_two_handed_hold(ctx):
