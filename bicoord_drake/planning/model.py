@@ -10,6 +10,12 @@
   that arm's gripper link (checked against the other arm with the inter-arm clearance, and
   against the world with the environment clearance) and its own body is parked out of reach.
   ``detach(side, q)`` puts it back into the world where the gripper left it.
+- A two-handed hold (``attach_both(name, q)``, or ``attach(..., together=True)`` while the
+  other gripper holds it): one object held by both grippers. Its primitives ride on the left
+  gripper (the *carrier*); collisions between it and both hands, and between the two hands
+  themselves, are filtered while the hold lasts (the hold fixes the grippers' relative pose,
+  which was checked when the grasps were chosen); everything else of each arm is still checked
+  against it. ``detach`` of one side leaves the other holding it alone.
 - ``set_gripper(side, opening)`` sets the finger opening held fixed while planning.
 - ``ignoring(names)`` is a context manager under which the named objects collide with nothing
   (the object being grasped, or the held object a second gripper takes over).
@@ -171,6 +177,12 @@ class PlanningModel:
             for side in SIDES
         }
 
+        arm_spec = self.embodiment.arm
+        cluster = {arm_spec.gripper_link.name, arm_spec.joints[-2].child, "left_finger"}
+        cluster.add("right_finger")
+        self.gripper_cluster = {
+            side: [b for b in self.robot_bodies[side] if b.name() in cluster] for side in SIDES
+        }
         self._q_full = np.zeros(plant.num_positions())
         self._object_poses: dict[str, RigidTransform] = {}
         self._held: dict[str, HeldObject] = {}
@@ -188,6 +200,14 @@ class PlanningModel:
             # Measured: OpenMP threads only slow the checks down on the 2-core target machine.
             implicit_context_parallelism=Parallelism(1),
         )
+        self._cluster_pairs = [
+            (a.index(), b.index())
+            for a in self.gripper_cluster["left"]
+            for b in self.gripper_cluster["right"]
+        ]
+        self._nominal_filtered = {
+            pair: self.checker.IsCollisionFilteredBetween(*pair) for pair in self._cluster_pairs
+        }
         for side in SIDES:
             self.set_gripper(side, self.embodiment.home_opening)
         for obj in self.scene.objects:
@@ -245,13 +265,25 @@ class PlanningModel:
         """Move an obstacle (not allowed while it is held)."""
         if name not in self._anchors:
             raise KeyError(f"no object {name!r} in the planning scene")
-        if self._holder(name) is not None:
+        if self.holders(name):
             raise PlanningError("object_held", f"{name} is held; detach it before moving it")
         self._object_poses[name] = X_WO
         self._refresh_anchor(name)
 
+    def holders(self, name: str) -> list[str]:
+        """The sides whose grippers hold `name` (both for a two-handed hold), left first."""
+        return [side for side in SIDES if side in self._held and self._held[side].name == name]
+
     def _holder(self, name: str) -> str | None:
-        return next((side for side, h in self._held.items() if h.name == name), None)
+        """The carrier of `name` (the first holder; its shapes ride on that gripper)."""
+        sides = self.holders(name)
+        return sides[0] if sides else None
+
+    @property
+    def held_together(self) -> str | None:
+        """The object both grippers hold (a two-handed hold), or None."""
+        left, right = self._held.get("left"), self._held.get("right")
+        return left.name if left and right and left.name == right.name else None
 
     def _anchor_pose(self, name: str) -> RigidTransform:
         """Where the object's own body is: parked while held or ignored."""
@@ -277,34 +309,80 @@ class PlanningModel:
         return self.gripper_pose(q12, side) @ self._held[side].X_GO
 
     def attach(
-        self, name: str, side: str, q12: np.ndarray, X_WO: RigidTransform | None = None
+        self,
+        name: str,
+        side: str,
+        q12: np.ndarray,
+        X_WO: RigidTransform | None = None,
+        *,
+        together: bool = False,
     ) -> None:
         """`side` grasps `name` at configuration `q12` (object at `X_WO`, default: its current
-        pose); from now on it moves with that gripper and is checked as part of the robot."""
+        pose); from now on it moves with that gripper and is checked as part of the robot.
+
+        With `together`, the object may already be held by the other gripper: both then hold
+        it (a two-handed hold; see the module docstring); `X_WO` defaults to where the other
+        gripper holds it at `q12`."""
         if side in self._held:
             raise PlanningError("gripper_busy", f"{side} gripper already holds {self._held[side]}")
-        if self._holder(name) is not None:
-            raise PlanningError("object_held", f"{name} is already held")
-        X_WO = self._object_poses[name] if X_WO is None else X_WO
+        other = self._holder(name)
+        if other is not None and not together:
+            raise PlanningError(
+                "object_held", f"{name} is already held (by {other}; together=True holds it both)"
+            )
+        if X_WO is None:
+            X_WO = self._object_poses[name] if other is None else self.held_pose(other, q12)
         X_GO = self.gripper_pose(q12, side).inverse() @ X_WO
         self._held[side] = HeldObject(name, side, X_GO)
-        self._object_poses[name] = X_WO
-        self._refresh_anchor(name)
-        self._sync_checker_held(side)
+        if other is None:
+            self._object_poses[name] = X_WO
+            self._refresh_anchor(name)
+        self._sync_checker_held()
+
+    def attach_both(self, name: str, q12: np.ndarray, X_WO: RigidTransform | None = None) -> None:
+        """Both grippers grasp `name` at `q12` (a two-handed hold; object at `X_WO`, default:
+        its current pose)."""
+        for side in SIDES:
+            if side in self._held:
+                raise PlanningError(
+                    "gripper_busy", f"{side} gripper already holds {self._held[side]}"
+                )
+        self.attach(name, "left", q12, X_WO)
+        self.attach(name, "right", q12, X_WO, together=True)
 
     def detach(
         self, side: str, q12: np.ndarray | None = None, X_WO: RigidTransform | None = None
     ) -> None:
-        """Release what `side` holds; it stays where the gripper is at `q12` (or at `X_WO`)."""
+        """Release what `side` holds; it stays where the gripper is at `q12` (or at `X_WO`).
+        If the other gripper holds it too, it stays held by that one (`q12`/`X_WO` unused)."""
         held = self._held.pop(side, None)
         if held is None:
             raise PlanningError("gripper_empty", f"{side} gripper holds nothing")
+        if self.holders(held.name):
+            self._sync_checker_held()
+            return
         if X_WO is None:
             if q12 is None:
+                self._held[side] = held
                 raise ValueError("detach needs the configuration q12 or the release pose X_WO")
             X_WO = self.gripper_pose(q12, side) @ held.X_GO
-        self._sync_checker_held(side)
+        self._sync_checker_held()
         self.set_object_pose(held.name, X_WO)
+
+    def detach_both(
+        self, q12: np.ndarray | None = None, X_WO: RigidTransform | None = None
+    ) -> None:
+        """End a two-handed hold: the object stays where the grippers leave it at `q12` (or at
+        `X_WO`)."""
+        name = self.held_together
+        if name is None:
+            raise PlanningError("not_held_together", "the grippers do not hold one object together")
+        if X_WO is None:
+            if q12 is None:
+                raise ValueError("detach_both needs the configuration q12 or the release pose X_WO")
+            X_WO = self.held_pose("left", q12)
+        self.detach("right")
+        self.detach("left", X_WO=X_WO)
 
     def _held_shapes(self, held: HeldObject) -> list[tuple[object, RigidTransform]]:
         obj = self.scene.object(held.name)
@@ -314,13 +392,22 @@ class PlanningModel:
             (drake_shape(p), held.X_GO @ rigid_transform(p.pose)) for p in obj.shape.primitives()
         ]
 
-    def _sync_checker_held(self, side: str) -> None:
-        group = _HELD_GROUP.format(side=side)
-        self.checker.RemoveAllAddedCollisionShapes(group)
-        held = self._held.get(side)
-        if held is not None and held.name not in self._ignored:
+    def _sync_checker_held(self) -> None:
+        """Put each held object's shapes on its carrier's gripper and set the hand-to-hand
+        filters of a two-handed hold."""
+        for side in SIDES:
+            group = _HELD_GROUP.format(side=side)
+            self.checker.RemoveAllAddedCollisionShapes(group)
+            held = self._held.get(side)
+            if held is None or held.name in self._ignored or self._holder(held.name) != side:
+                continue
             for shape, X_GP in self._held_shapes(held):
                 self.checker.AddCollisionShapeToBody(group, self.gripper_bodies[side], shape, X_GP)
+        together = self.held_together is not None
+        for pair in self._cluster_pairs:
+            self.checker.SetCollisionFilteredBetween(
+                *pair, together or self._nominal_filtered[pair]
+            )
         self._update_radius()
         self._contexts.clear()
 
@@ -348,11 +435,10 @@ class PlanningModel:
         changed = names ^ self._ignored
         self._ignored = names
         for name in changed:
-            side = self._holder(name)
-            if side is None:
+            if self._holder(name) is None:
                 self._refresh_anchor(name)
             else:
-                self._sync_checker_held(side)
+                self._sync_checker_held()
 
     # ------------------------------------------------------------------ distance contexts
     def distance_context(self, kind: str) -> Context:
@@ -372,7 +458,7 @@ class PlanningModel:
         held_geoms: dict[str, list] = {side: [] for side in SIDES}
         source = self.plant.get_source_id()
         for side, held in self._held.items():
-            if held.name in self._ignored:
+            if held.name in self._ignored or self._holder(held.name) != side:
                 continue
             frame = self.plant.GetBodyFrameIdOrThrow(self.gripper_bodies[side].index())
             for i, (shape, X_GP) in enumerate(self._held_shapes(held)):
@@ -392,14 +478,18 @@ class PlanningModel:
             decl.ExcludeBetween(GeometrySet(env), GeometrySet(env + list(robot_all)))
             for side in SIDES:
                 decl.ExcludeBetween(GeometrySet(held_geoms[side]), GeometrySet(env))
+            if self.held_together is not None:  # the hold fixes the hands' relative pose
+                hands = {s: self._geometries(self.gripper_cluster[s]) for s in SIDES}
+                decl.ExcludeBetween(
+                    GeometrySet(hands["left"] + held_geoms["left"]),
+                    GeometrySet(hands["right"] + held_geoms["right"]),
+                )
         elif kind == "env":
             decl.ExcludeBetween(left, right).ExcludeWithin(GeometrySet(env))
             for side in SIDES:
                 # The held object touches its own gripper and fingers.
-                grip = [b for b in self.robot_bodies[side] if b.name() in self._gripper_cluster]
-                decl.ExcludeBetween(
-                    GeometrySet(held_geoms[side]), GeometrySet(self._geometries(grip))
-                )
+                grip = self._geometries(self.gripper_cluster[side])
+                decl.ExcludeBetween(GeometrySet(held_geoms[side]), GeometrySet(grip))
                 decl.ExcludeWithin(GeometrySet(held_geoms[side]))
         else:
             raise ValueError(f"unknown distance context {kind!r}; use 'arms' or 'env'")
@@ -408,11 +498,6 @@ class PlanningModel:
 
     def _geometries(self, bodies: Iterable) -> list:
         return [g for b in bodies for g in self.plant.GetCollisionGeometriesForBody(b)]
-
-    @property
-    def _gripper_cluster(self) -> set[str]:
-        arm = self.embodiment.arm
-        return {arm.gripper_link.name, arm.joints[-2].child, "left_finger", "right_finger"}
 
     # ------------------------------------------------------------------ collision checking
     def set_padding(self, clearance: float, env_clearance: float) -> None:

@@ -133,6 +133,19 @@ def top_z(state: WorldState, name: str) -> float:
     return float(world_corners(state, name)[:, 2].max())
 
 
+def lowest_z(state: WorldState, name: str) -> float:
+    """Lowest world height of the object itself: exact for a cylinder at any roll about its
+    axis and for a sphere (their boxes' corners reach lower), the box's corners otherwise."""
+    shape = state.shape(name)
+    if isinstance(shape, CylinderShape):
+        a_z = min(abs(float(state.rotation(name)[2, 2])), 1.0)
+        drop = shape.length / 2 * a_z + shape.radius * math.sqrt(1.0 - a_z * a_z)
+        return float(state.position(name)[2] - drop)
+    if isinstance(shape, SphereShape):
+        return float(state.position(name)[2] - shape.radius)
+    return bottom_z(state, name)
+
+
 def centre(state: WorldState, name: str) -> np.ndarray:
     """World position of the centre of the object's box."""
     lo, hi = local_bounds(state.shape(name))
@@ -172,6 +185,17 @@ def on_top_of(a: str, b: str, xy_tol: float = 0.02, z_tol: float = 0.01) -> Pred
         return bool(near and abs(bottom_z(s, a) - top_z(s, b)) <= z_tol)
 
     return Predicate(check, f"on_top_of({a!r}, {b!r}, xy_tol={xy_tol}, z_tol={z_tol})")
+
+
+def rests_on(a: str, b: str, xy_tol: float = 0.02, z_tol: float = 0.006) -> Predicate:
+    """`a` lies on `b`: centres within `xy_tol` in xy, a's lowest point (:func:`lowest_z`: a
+    lying roller's surface, not its box) within `z_tol` of b's top."""
+
+    def check(s: WorldState) -> bool:
+        near = np.linalg.norm(centre(s, a)[:2] - centre(s, b)[:2]) <= xy_tol
+        return bool(near and abs(lowest_z(s, a) - top_z(s, b)) <= z_tol)
+
+    return Predicate(check, f"rests_on({a!r}, {b!r}, xy_tol={xy_tol}, z_tol={z_tol})")
 
 
 def above(a: str, b: str, xy_tol: float = 0.04, min_dz: float = 0.02) -> Predicate:

@@ -200,3 +200,44 @@ def test_combinators_and_names():
 def test_unknown_object_is_a_clear_error():
     with pytest.raises(KeyError, match="no object 'ghost'"):
         P.lifted("ghost")(state(scene()))
+
+
+def _roller_on_large(roll: float = 0.0, dz: float = 0.0, dx: float = 0.0) -> np.ndarray:
+    """The roller (r = 2 cm, along x) lying across the large cube, turned `roll` about its
+    own axis."""
+    q_axis = quat_to_matrix(quat_about("y", math.pi / 2))
+    turn = quat_to_matrix(quat_about("x", roll))
+    R = turn @ q_axis
+    w = math.sqrt(max(0.0, 1 + np.trace(R))) / 2
+    quat = (
+        w,
+        (R[2, 1] - R[1, 2]) / (4 * w),
+        (R[0, 2] - R[2, 0]) / (4 * w),
+        (R[1, 0] - R[0, 1]) / (4 * w),
+    )
+    return pose(0.1 + dx, 0.0, TABLE_TOP + 0.06 + 0.02 + dz, quat)
+
+
+def test_lowest_z_is_exact_for_a_lying_cylinder_at_any_roll():
+    for roll in (0.0, 0.4, math.pi / 4, 2.0):
+        s = state(poses={"roller": _roller_on_large(roll)})
+        assert P.lowest_z(s, "roller") == pytest.approx(TABLE_TOP + 0.06, abs=1e-9)
+    # its box reaches lower once it has turned about its axis
+    turned = state(poses={"roller": _roller_on_large(math.pi / 4)})
+    assert P.bottom_z(turned, "roller") < TABLE_TOP + 0.06 - 0.008
+    # standing on its end: half its length below the centre
+    standing = state(poses={"roller": pose(0.0, -0.2, TABLE_TOP + 0.175)})
+    assert P.lowest_z(standing, "roller") == pytest.approx(TABLE_TOP, abs=1e-9)
+
+
+def test_rests_on_a_cube_and_not_beside_above_or_on_the_table():
+    on = P.rests_on("roller", "large", xy_tol=0.03)
+    assert on(state(poses={"roller": _roller_on_large()}))
+    assert on(state(poses={"roller": _roller_on_large(roll=math.pi / 4)}))  # turned, still on it
+    assert on(state(poses={"roller": _roller_on_large(dx=0.025)}))
+    assert not on(state(poses={"roller": _roller_on_large(dx=0.04)}))  # off centre
+    assert not on(state(poses={"roller": _roller_on_large(dz=0.015)}))  # held above it
+    assert not on(state())  # on the table in front of it
+    beside = _roller_on_large()
+    beside[1:3] = (0.07, TABLE_TOP + 0.02)
+    assert not on(state(poses={"roller": beside}))  # on the table, next to the cube

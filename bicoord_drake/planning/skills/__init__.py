@@ -26,10 +26,15 @@ module                    skills
                           :func:`crossing_grasps`, :func:`meet_motion`
 :mod:`.toss`              :func:`toss` (a throw released on the control grid into a container
                           the other arm holds under the predicted landing point)
+:mod:`.bimanual`          two hands on one object: :func:`two_hand_grasps` (chosen together),
+                          :func:`pick_together`, :func:`grip_together` (same control steps),
+                          :func:`track_together` / :func:`carry_together` (the object's path,
+                          both arms by one timing), :func:`release_together`
 ========================  ===================================================================
 
 Every planning failure raises :class:`~bicoord_drake.planning.errors.PlanningError` with a
-reason; the two-arm skills (handover, toss) leave the context unchanged when they fail.
+reason; the two-arm skills (handover, toss, the ``*_together`` skills) leave the context
+unchanged when they fail.
 
 >>> ctx = SkillContext(PlanningModel(scene))                            # doctest: +SKIP
 >>> left = pick(ctx, "left", "cube_a")
@@ -47,6 +52,15 @@ from bicoord_drake.planning.skills.arm import (
     solve_tcp,
     tcp_deviation,
 )
+from bicoord_drake.planning.skills.bimanual import (
+    GraspPair,
+    carry_together,
+    grip_together,
+    pick_together,
+    release_together,
+    track_together,
+    two_hand_grasps,
+)
 from bicoord_drake.planning.skills.core import ArmPlan, Motion, SkillContext, hold, merge
 from bicoord_drake.planning.skills.handover import (
     ReceiverGrasps,
@@ -63,13 +77,16 @@ from bicoord_drake.planning.skills.tracking import push, track
 
 __all__ = [
     "ArmPlan",
+    "GraspPair",
     "Motion",
     "ReceiverGrasps",
     "SkillContext",
     "carry_above",
+    "carry_together",
     "crossing_grasps",
     "fingers_cross",
     "grip",
+    "grip_together",
     "half_extent",
     "handover",
     "hold",
@@ -80,14 +97,18 @@ __all__ = [
     "move",
     "move_tcp",
     "pick",
+    "pick_together",
     "place",
     "pour",
     "push",
     "release",
+    "release_together",
     "retreat",
     "solve_tcp",
     "stabilize",
     "tcp_deviation",
     "toss",
     "track",
+    "track_together",
+    "two_hand_grasps",
 ]

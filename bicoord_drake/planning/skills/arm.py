@@ -27,12 +27,19 @@ def move(
     straight: bool = False,
     clearance: float | None = None,
 ) -> ArmPlan:
-    """A collision-checked, timed joint path of one arm (the other stays where it is).
+    """A collision-checked, timed joint path of one arm (the other stays where it is); not
+    while both hands hold one object.
 
     A `clearance` (m) between the arms, if given, is checked with no environment margin
     (close two-arm work such as a handover)."""
     from bicoord_drake.planning.motion import plan_path
 
+    together = ctx.model.held_together
+    if together is not None:
+        raise PlanningError(
+            "held_together",
+            f"{label}: both hands hold {together!r}; one arm cannot move alone (carry_together)",
+        )
     start = ctx.q.copy()
     goal = ctx.with_arm(side, np.asarray(q6_goal, float))
     if clearance is not None:

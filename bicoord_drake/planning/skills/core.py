@@ -189,7 +189,8 @@ class SkillContext:
             if X_WO is None:
                 continue
             self.model.detach(side, X_WO=X_WO)
-            self.model.attach(held.name, side, self.q, X_WO=X_WO)
+            together = bool(self.model.holders(held.name))  # the other hand holds it too
+            self.model.attach(held.name, side, self.q, X_WO=X_WO, together=together)
 
     def arm_q(self, side: str) -> np.ndarray:
         """The six joint angles of `side` (a copy)."""
@@ -218,7 +219,8 @@ class SkillContext:
             for side, h in held.items():
                 if side not in self.model.held:
                     X_WO = self.model.gripper_pose(q, side) @ h.X_GO
-                    self.model.attach(h.name, side, q, X_WO)
+                    together = bool(self.model.holders(h.name))
+                    self.model.attach(h.name, side, q, X_WO, together=together)
             held_names = {h.name for h in held.values()}
             for name, X in poses.items():
                 if name not in held_names:

@@ -59,20 +59,22 @@ def track(
     return ArmPlan(side, q6, np.full(len(q6), ctx.opening[side]), label=label)
 
 
+def path_parameter(duration: float, dt: float) -> np.ndarray:
+    """Samples of a path parameter s from 0 to 1 on the control grid: one jerk-limited
+    profile whose top speed is 1 / `duration` (acceleration 6x, jerk 60x that rate)."""
+    rate = 1.0 / duration
+    s_limits = JointLimits(
+        np.zeros(1), np.ones(1), np.array([rate]), np.array([6 * rate]), np.array([60 * rate])
+    )
+    return time_path(np.array([[0.0], [1.0]]), s_limits, dt).q[:, 0]
+
+
 def _track_samples(
     ctx: SkillContext, side, pose_at, duration, q_other, ignore, label
 ) -> np.ndarray:
     """(N, 6) joint samples of :meth:`_track`, slowed until the joints keep up."""
     for _ in range(4):
-        rate = 1.0 / duration
-        s_limits = JointLimits(
-            np.zeros(1),
-            np.ones(1),
-            np.array([rate]),
-            np.array([6 * rate]),
-            np.array([60 * rate]),
-        )
-        s = time_path(np.array([[0.0], [1.0]]), s_limits, ctx.dt).q[:, 0]
+        s = path_parameter(duration, ctx.dt)
         q, prev = [ctx.q.copy()], ctx.q.copy()
         for s_k in s[1:]:
             ctx.track_ik.nominal = prev
