@@ -20,7 +20,14 @@ from typing import Literal
 
 import numpy as np
 
-from bicoord_drake.models.objects import BowlShape, BoxShape, CylinderShape, Shape, SphereShape
+from bicoord_drake.models.objects import (
+    BinShape,
+    BowlShape,
+    BoxShape,
+    CylinderShape,
+    Shape,
+    SphereShape,
+)
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.stages.stage import GRIPPER_INDEX, WorldState
 
@@ -227,8 +234,11 @@ class Cavity:
 
 
 def cavity_of(shape: Shape) -> Cavity:
-    """The cavity of a container shape: a :class:`BowlShape`'s inner wall, floor and rim.
-    Other shapes (compounds, boxes) are containers only with an explicit :class:`Cavity`."""
+    """The cavity of a container shape: a :class:`BowlShape`'s inner wall, floor and rim; a
+    :class:`BinShape`'s inner box above its floor. Other shapes (compounds, boxes) are
+    containers only with an explicit :class:`Cavity`."""
+    if isinstance(shape, BinShape):
+        return Cavity(kind="box", floor=shape.wall, rim=shape.size[2], half_xy=shape.inner_half)
     if isinstance(shape, BowlShape):
         return Cavity(
             kind="round",
