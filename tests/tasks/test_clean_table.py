@@ -11,7 +11,13 @@ from bicoord_drake.models.objects import BoxShape
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
-from bicoord_drake.stages.predicates import centre, local_bounds, reset_predicate
+from bicoord_drake.stages.predicates import (
+    centre,
+    local_bounds,
+    reset_predicate,
+    world_corners,
+    world_hull_points,
+)
 from bicoord_drake.tasks import TASK_MODULES, get_task
 from bicoord_drake.tasks.base import check_task_class
 from tests.stages.helpers import quat_about
@@ -145,6 +151,24 @@ def test_an_object_held_inside_the_bin_does_not_count(scene):
     # let go (the other gripper still holds something else): counts
     other = _state(scene, {O1: _in_bin(0, scene)}, openings=(1.0, 0.0), contacts={O2: {"right"}})
     assert one(other)
+
+
+def test_a_tilted_loaf_leaning_in_the_bin_counts_but_not_beside_it(scene):
+    """Seed 1's last object (the bread: a box with a dome) came to rest tipped over 130 deg,
+    its lowest point on the bin's floor: inside. Its bounding box's corners reach 2.6 mm
+    below the table there (empty space beside the dome), so the lowest point is taken from the
+    real solid. Moved beside the bin onto the table, the same pose is not inside."""
+    assert scene.draws["kinds"][3] == "bread"
+    quat = np.array([0.406, 0.808, -0.244, -0.35])
+    pose = np.r_[0.007, -0.078, 0.799, quat / np.linalg.norm(quat)]
+    st = _state(scene, {O4: pose})
+    assert world_corners(st, O4)[:, 2].min() < TABLE_TOP  # the box corner: below the table
+    assert world_hull_points(st, O4)[:, 2].min() > TABLE_TOP + ct.BIN.wall - 0.002
+    assert ct.in_bin(O4)(st)
+    drop = world_hull_points(st, O4)[:, 2].min() - TABLE_TOP
+    beside = pose.copy()
+    beside[:3] += [0.25, 0.0, -drop]
+    assert not ct.in_bin(O4)(_state(scene, {O4: beside}))
 
 
 def test_counts_need_that_many_distinct_objects(scene):
