@@ -11,7 +11,7 @@ from typing import Annotated, Literal
 
 import numpy as np
 import trimesh
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from bicoord_drake.models.geometry import (
     ContactProps,
@@ -40,12 +40,19 @@ class BoxShape(_Shape):
 
     kind: Literal["box"] = "box"
     size: tuple[float, float, float] = Field(description="x, y, z side lengths, m")
+    rounding: float | None = Field(
+        None,
+        ge=0,
+        description="edge radius of the visual, m (default 6 % of the shortest side); a soap "
+        "bar is a box with round edges. Collision stays the box.",
+    )
 
     def primitives(self) -> list[Primitive]:
         return [Primitive(kind="box", size=self.size)]
 
     def visual_mesh(self) -> trimesh.Trimesh:
-        return Primitive(kind="box", size=self.size).trimesh(smooth=0.06 * min(self.size))
+        smooth = 0.06 * min(self.size) if self.rounding is None else self.rounding
+        return Primitive(kind="box", size=self.size).trimesh(smooth=smooth)
 
 
 class CylinderShape(_Shape):
@@ -128,6 +135,49 @@ class BowlShape(_Shape):
         return trimesh.creation.revolve(profile, sections=48)
 
 
+class BinShape(_Shape):
+    """An open box (a trash bin, a tray): a floor slab and four wall slabs standing on it.
+
+    `size` is the outer x, y, z; its frame is at the centre of the floor's underside. The
+    cavity (what ``inside`` checks against) is the inner box above the floor, up to the rim."""
+
+    kind: Literal["bin"] = "bin"
+    size: tuple[float, float, float] = Field(description="outer x, y, z, m")
+    wall: float = Field(0.006, gt=0, description="wall and floor thickness, m")
+
+    @model_validator(mode="after")
+    def _walls_fit(self) -> BinShape:
+        if min(self.size[:2]) <= 2 * self.wall or self.size[2] <= self.wall:
+            raise ValueError(f"bin size {self.size} leaves no room inside walls of {self.wall} m")
+        return self
+
+    @property
+    def inner_half(self) -> tuple[float, float]:
+        """Half the inner x and y, m."""
+        return self.size[0] / 2 - self.wall, self.size[1] / 2 - self.wall
+
+    def primitives(self) -> list[Primitive]:
+        sx, sy, h = self.size
+        w = self.wall
+        zc = w + (h - w) / 2  # wall slabs stand on the floor slab
+        return [
+            Primitive(kind="box", size=(sx, sy, w), pose=Pose(xyz=(0.0, 0.0, w / 2))),
+            Primitive(kind="box", size=(w, sy, h - w), pose=Pose(xyz=(sx / 2 - w / 2, 0.0, zc))),
+            Primitive(kind="box", size=(w, sy, h - w), pose=Pose(xyz=(w / 2 - sx / 2, 0.0, zc))),
+            Primitive(
+                kind="box", size=(sx - 2 * w, w, h - w), pose=Pose(xyz=(0.0, sy / 2 - w / 2, zc))
+            ),
+            Primitive(
+                kind="box", size=(sx - 2 * w, w, h - w), pose=Pose(xyz=(0.0, w / 2 - sy / 2, zc))
+            ),
+        ]
+
+    def visual_mesh(self) -> trimesh.Trimesh:
+        return trimesh.util.concatenate(
+            [p.trimesh(smooth=0.4 * self.wall) for p in self.primitives()]
+        )
+
+
 class CompoundShape(_Shape):
     """A rigid union of primitives in the object frame (a skillet = bowl slabs + a handle bar,
     a microphone = a handle cylinder + a ball head, ...). Collision uses exactly these parts."""
@@ -183,9 +233,69 @@ class MugShape(_Shape):
 
 
 Shape = Annotated[
-    BoxShape | CylinderShape | SphereShape | BowlShape | CompoundShape | MugShape,
+    BoxShape | CylinderShape | SphereShape | BowlShape | BinShape | CompoundShape | MugShape,
     Field(discriminator="kind"),
 ]
+
+
+# ------------------------------------------------------------------ small everyday objects
+def toy_car(
+    length: float = 0.08,
+    width: float = 0.04,
+    body_height: float = 0.02,
+    wheel_radius: float = 0.011,
+    wheel_width: float = 0.008,
+) -> CompoundShape:
+    """A toy car as one rigid body: a body box on four wheel cylinders (axles along y) and a
+    cabin box on top. Frame at the centre of the footprint on the support (wheels' bottom)."""
+    clear = wheel_radius * 0.55  # the body's underside above the support
+    body_z = clear + body_height / 2
+    cabin = (length / 2, width * 0.85, body_height * 0.7)
+    wheel_x = length / 2 - wheel_radius * 1.25
+    wheel_y = width / 2 + wheel_width / 2
+    parts = [
+        Primitive(kind="box", size=(length, width, body_height), pose=Pose(xyz=(0.0, 0.0, body_z))),
+        Primitive(
+            kind="box",
+            size=cabin,
+            pose=Pose(xyz=(-length * 0.08, 0.0, clear + body_height + cabin[2] / 2)),
+        ),
+    ]
+    for sx in (1.0, -1.0):
+        for sy in (1.0, -1.0):
+            parts.append(
+                Primitive(
+                    kind="cylinder",
+                    size=(wheel_radius, wheel_width),
+                    pose=Pose(
+                        xyz=(sx * wheel_x, sy * wheel_y, wheel_radius), rpy=(np.pi / 2, 0, 0)
+                    ),
+                )
+            )
+    return CompoundShape(parts=tuple(parts))
+
+
+def domed_box(size: tuple[float, float, float], dome_radius: float) -> CompoundShape:
+    """A flat box with a rounded ridge along its length (a computer mouse, a loaf of bread):
+    the box plus a capsule along x whose axis lies on the box's top face (its lower half
+    within the box, so the solid is the box and a half-capsule ridge). Frame at the centre of
+    the bottom face."""
+    sx, sy, sz = size
+    if not 0 < dome_radius <= min(sy / 2, sx / 2, sz):
+        raise ValueError(f"dome radius {dome_radius} must fit on and within the box {size}")
+    dome_length = sx - 2 * dome_radius - 0.004
+    if dome_length <= 0:
+        raise ValueError(f"box {size} too short for a dome of radius {dome_radius}")
+    return CompoundShape(
+        parts=(
+            Primitive(kind="box", size=size, pose=Pose(xyz=(0.0, 0.0, sz / 2))),
+            Primitive(
+                kind="capsule",
+                size=(dome_radius, dome_length),
+                pose=Pose(xyz=(0.0, 0.0, sz), rpy=(0.0, np.pi / 2, 0.0)),
+            ),
+        )
+    )
 
 
 class SceneObject(BaseModel):

@@ -36,6 +36,7 @@ from pydrake.math import RigidTransform, RotationMatrix
 from bicoord_drake.models.embodiment import Embodiment, GripperSpec, Side
 from bicoord_drake.models.geometry import Primitive
 from bicoord_drake.models.objects import (
+    BinShape,
     BowlShape,
     BoxShape,
     CompoundShape,
@@ -511,6 +512,30 @@ def compound_grasps(
     return sorted(grasps, key=lambda g: -g.score)
 
 
+def bounding_box_grasps(
+    X_WO: RigidTransform,
+    shape: Shape,
+    gripper: GripperSpec,
+    *,
+    base: np.ndarray | None = None,
+    kinds: Sequence[GraspKind] = ("top",),
+    params: GraspParams = GraspParams(),
+) -> list[Grasp]:
+    """Grasps of a small compound object (a toy car, a domed box) as if it were its bounding
+    box, best first, with ``X_OG`` in the object's frame: the jaw closes across the whole
+    object, so the pads meet whichever parts stick out furthest (the car's body, the dome's
+    base) instead of one part chosen alone."""
+    lo = np.min([p.trimesh().bounds[0] for p in shape.primitives()], axis=0)
+    hi = np.max([p.trimesh().bounds[1] for p in shape.primitives()], axis=0)
+    X_OB = RigidTransform((lo + hi) / 2)
+    box = BoxShape(size=tuple(float(v) for v in hi - lo))
+    X_OW = X_WO.inverse()
+    out = []
+    for g in box_grasps(X_WO @ X_OB, box, gripper, base=base, kinds=kinds, params=params):
+        out.append(Grasp(g.kind, g.X_WG, g.X_WPre, X_OW @ g.X_WG, g.width, g.score))
+    return out
+
+
 # --------------------------------------------------------------------------------------------
 # Place poses
 # --------------------------------------------------------------------------------------------
@@ -531,6 +556,8 @@ def top_offset(shape: Shape) -> float:
     """Height of the object's top above its frame when upright."""
     if isinstance(shape, BowlShape):
         return shape.height
+    if isinstance(shape, BinShape):
+        return shape.size[2]
     return bottom_offset(shape)
 
 

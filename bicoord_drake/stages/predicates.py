@@ -20,7 +20,14 @@ from typing import Literal
 
 import numpy as np
 
-from bicoord_drake.models.objects import BowlShape, BoxShape, CylinderShape, Shape, SphereShape
+from bicoord_drake.models.objects import (
+    BinShape,
+    BowlShape,
+    BoxShape,
+    CylinderShape,
+    Shape,
+    SphereShape,
+)
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.stages.stage import GRIPPER_INDEX, WorldState
 
@@ -121,6 +128,25 @@ def world_corners(state: WorldState, name: str) -> np.ndarray:
         [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
     )
     return corners @ state.rotation(name).T + state.position(name)
+
+
+@lru_cache(maxsize=256)
+def _hull_points(shape: Shape) -> np.ndarray:
+    """Vertices of the convex hull of the shape's primitives (its real extent: a tilted
+    compound's bounding-box corners can lie in empty space)."""
+    import trimesh
+
+    points = np.concatenate([p.trimesh().vertices for p in shape.primitives()])
+    hull = trimesh.convex.convex_hull(points).vertices
+    out = np.array(hull, dtype=float)
+    out.setflags(write=False)
+    return out
+
+
+def world_hull_points(state: WorldState, name: str) -> np.ndarray:
+    """(N, 3) points of the object's real solid (its primitives' convex hull), in world: the
+    lowest of them is the object's lowest point however it is turned."""
+    return _hull_points(state.shape(name)) @ state.rotation(name).T + state.position(name)
 
 
 def bottom_z(state: WorldState, name: str) -> float:
@@ -251,8 +277,11 @@ class Cavity:
 
 
 def cavity_of(shape: Shape) -> Cavity:
-    """The cavity of a container shape: a :class:`BowlShape`'s inner wall, floor and rim.
-    Other shapes (compounds, boxes) are containers only with an explicit :class:`Cavity`."""
+    """The cavity of a container shape: a :class:`BowlShape`'s inner wall, floor and rim; a
+    :class:`BinShape`'s inner box above its floor. Other shapes (compounds, boxes) are
+    containers only with an explicit :class:`Cavity`."""
+    if isinstance(shape, BinShape):
+        return Cavity(kind="box", floor=shape.wall, rim=shape.size[2], half_xy=shape.inner_half)
     if isinstance(shape, BowlShape):
         return Cavity(
             kind="round",
@@ -282,8 +311,10 @@ def inside(
     Holds when the container stands within `max_tilt` (rad) of upright (an upside-down or
     tipped container holds nothing), the object's centre lies within the inner wall shrunk by
     `margin` at its height and no higher than the rim + `z_above` (the stated allowance: e.g.
-    a second object lying on the first), and the object's lowest point is no more than
-    `floor_tol` below the inner floor (resting in it, not under it or on the table beside it).
+    a second object lying on the first), and the object's lowest point (of its real solid,
+    :func:`world_hull_points`, not of its bounding box, whose corners a tilted compound swings
+    through empty space) is no more than `floor_tol` below the inner floor (resting in it, not
+    under it or on the table beside it).
     """
 
     def check(s: WorldState) -> bool:
@@ -292,7 +323,7 @@ def inside(
             return False
         R_WC, p_WC = s.rotation(container), s.position(container)
         p = R_WC.T @ (centre(s, obj) - p_WC)
-        lowest = float(((world_corners(s, obj) - p_WC) @ R_WC)[:, 2].min())
+        lowest = float(((world_hull_points(s, obj) - p_WC) @ R_WC)[:, 2].min())
         return bool(
             cav.contains_xy(p, margin)
             and p[2] <= cav.rim + z_above

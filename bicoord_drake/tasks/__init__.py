@@ -12,6 +12,7 @@ from bicoord_drake.tasks.registry import get_task, list_tasks, register_task
 TASK_MODULES: tuple[str, ...] = (
     "balance_roller",
     "build_tower_with_blocks",
+    "clean_table",
     "cook",
     "exchange_mics",
     "handover_block_with_bowls",

@@ -18,6 +18,7 @@ from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
     SkillContext,
+    arrive_as_leaves,
     hold,
     merge,
     move_tcp,
@@ -348,23 +349,7 @@ def _nest_goal(ctx: SkillContext, lower: str) -> RigidTransform:
 def _leave_then_enter(ctx: SkillContext, leaver: ArmPlan, placer: ArmPlan) -> Motion:
     """Both plans at once, each at its own pace, the placer held back until the leaver's TCP
     is out of CLEAR_RADIUS around the spot (for CLEAR_STEPS) before the placer's comes in."""
-    out = _first_step(ctx, leaver, inside=False)
-    into = _first_step(ctx, placer, inside=True)
-    plans = {leaver.side: leaver, placer.side: placer.delayed(out + CLEAR_STEPS - into)}
-    return merge(ctx, plans["left"], plans["right"], stretch=False)
-
-
-def _first_step(ctx: SkillContext, plan: ArmPlan, inside: bool) -> int:
-    """First sample of `plan` whose TCP is inside (or outside) CLEAR_RADIUS of the spot in xy;
-    the plan's length if there is none."""
-    q12 = np.array(ctx.q, dtype=float)
-    cols = ctx.model.side_slice(plan.side)
-    for i, q in enumerate(plan.q):
-        q12[cols] = q
-        p = ctx.model.tcp_pose(q12, plan.side).translation()
-        if (np.hypot(p[0] - SPOT_XY[0], p[1] - SPOT_XY[1]) <= CLEAR_RADIUS) == inside:
-            return i
-    return plan.num_steps
+    return arrive_as_leaves(ctx, leaver, placer, SPOT_XY, CLEAR_RADIUS, lag_steps=CLEAR_STEPS)
 
 
 def _wait(ctx: SkillContext, side: str) -> ArmPlan:

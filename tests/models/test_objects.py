@@ -105,3 +105,102 @@ def test_walls_on_base_default_keeps_the_original_slabs():
     slab = bowl.primitives()[1]
     assert slab.pose.xyz[2] == bowl.height / 2
     assert slab.size[2] == float(np.hypot(0.07 - 0.045, 0.05))
+
+
+# ------------------------------------------------------------------ bins and small objects
+def _solid_volume(shape, n: int = 60) -> float:
+    """Volume of the union of a shape's primitives (boxes, cylinders, capsules) on an n^3 grid."""
+    from bicoord_drake.models.geometry import pose_matrix
+
+    prims = shape.primitives()
+    lo = np.min([p.trimesh().bounds[0] for p in prims], axis=0)
+    hi = np.max([p.trimesh().bounds[1] for p in prims], axis=0)
+    axes = [lo[i] + (np.arange(n) + 0.5) * (hi[i] - lo[i]) / n for i in range(3)]
+    pts = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+    inside = np.zeros(len(pts), bool)
+    for p in prims:
+        T = pose_matrix(p.pose.xyz, p.pose.rpy)
+        local = (pts - T[:3, 3]) @ T[:3, :3]
+        if p.kind == "box":
+            inside |= np.all(np.abs(local) <= np.asarray(p.size) / 2, axis=1)
+        else:
+            r, half = p.size[0], p.size[1] / 2
+            radial = np.hypot(local[:, 0], local[:, 1])
+            if p.kind == "cylinder":
+                inside |= (radial <= r) & (np.abs(local[:, 2]) <= half)
+            else:  # capsule: within r of its axis segment
+                z = np.clip(local[:, 2], -half, half)
+                inside |= np.hypot(radial, local[:, 2] - z) <= r
+    return float(inside.mean() * np.prod(hi - lo))
+
+
+def test_bin_is_an_open_box_with_its_real_cavity():
+    from bicoord_drake.models.objects import BinShape
+    from bicoord_drake.stages.predicates import cavity_of
+
+    bin_ = BinShape(size=(0.19, 0.17, 0.08), wall=0.006)
+    prims = bin_.primitives()
+    assert len(prims) == 5  # floor + four walls, never a hull
+    cav = cavity_of(bin_)
+    assert cav.kind == "box" and cav.floor == pytest.approx(0.006) and cav.rim == 0.08
+    assert cav.half_xy == pytest.approx((0.089, 0.079))
+    # nothing above the floor inside the walls: the opening is free down to the floor
+    for p in prims[1:]:
+        x, y, _ = p.pose.xyz
+        assert abs(x) + p.size[0] / 2 > 0.0949 or abs(y) + p.size[1] / 2 > 0.0849
+        assert abs(x) - p.size[0] / 2 >= 0.089 - 1e-9 or abs(y) - p.size[1] / 2 >= 0.079 - 1e-9
+    # walls reach the rim
+    assert max(p.pose.xyz[2] + p.size[2] / 2 for p in prims) == pytest.approx(0.08)
+    with pytest.raises(ValidationError, match="no room"):
+        BinShape(size=(0.01, 0.17, 0.08), wall=0.006)
+
+
+def test_small_everyday_objects_are_small_and_simple():
+    from bicoord_drake.tasks.clean_table import KINDS
+
+    for name, (shape, mass, _) in KINDS.items():
+        volume = _solid_volume(shape)
+        assert 50e-6 < volume <= 125e-6, (name, volume * 1e6)
+        assert len(shape.primitives()) <= 6, name
+        assert 0.02 <= mass <= 0.1
+
+
+def test_domed_box_is_a_box_with_a_ridge_on_top():
+    from bicoord_drake.models.objects import domed_box
+
+    shape = domed_box((0.085, 0.05, 0.02), 0.017)
+    box, ridge = shape.primitives()
+    assert ridge.kind == "capsule" and ridge.pose.xyz[2] == pytest.approx(0.02)
+    # its bottom is the box's: flat on the table, frame on the bottom face
+    assert min(p.trimesh().bounds[0][2] for p in (box, ridge)) == pytest.approx(0.0, abs=1e-9)
+    # the ridge's lower half lies inside the box: volume = box + half a capsule
+    capsule = np.pi * 0.017**2 * ridge.size[1] + 4 / 3 * np.pi * 0.017**3
+    assert _solid_volume(shape, 80) == pytest.approx(0.085 * 0.05 * 0.02 + capsule / 2, rel=0.03)
+    with pytest.raises(ValueError, match="dome radius"):
+        domed_box((0.085, 0.05, 0.01), 0.017)
+
+
+def test_toy_car_stands_on_its_wheels():
+    from bicoord_drake.models.objects import toy_car
+
+    parts = toy_car().primitives()
+    wheels = [p for p in parts if p.kind == "cylinder"]
+    assert len(wheels) == 4 and len(parts) == 6
+    bottoms = {round(float(p.trimesh().bounds[0][2]), 6) for p in parts}
+    assert min(bottoms) == pytest.approx(0.0, abs=1e-6)
+    body_bottoms = [p.trimesh().bounds[0][2] for p in parts if p.kind == "box"]
+    assert min(body_bottoms) > 0.003  # only the wheels touch the support
+
+
+def test_box_rounding_changes_only_the_visual():
+    plain, soap = (
+        BoxShape(size=(0.08, 0.05, 0.025)),
+        BoxShape(size=(0.08, 0.05, 0.025), rounding=0.01),
+    )
+    assert plain.primitives() == soap.primitives()
+    assert soap.visual_mesh().volume < plain.visual_mesh().volume - 1e-6
+    # the default visual is unchanged (6 % of the shortest side)
+    from bicoord_drake.models.geometry import Primitive
+
+    expected = Primitive(kind="box", size=plain.size).trimesh(smooth=0.06 * 0.025)
+    np.testing.assert_allclose(plain.visual_mesh().vertices, expected.vertices)

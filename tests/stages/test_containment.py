@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from bicoord_drake.models.geometry import Pose, Primitive
-from bicoord_drake.models.objects import BowlShape, CompoundShape, SceneObject
+from bicoord_drake.models.objects import BinShape, BowlShape, CompoundShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.stages import predicates as P
 from bicoord_drake.stages.stage import WorldState, quat_to_matrix
@@ -33,7 +33,10 @@ KINDS = {
     "bowl": (BOWL, None, 0.063, 0.075),
     "compound": (CompoundShape(parts=tuple(BOWL.primitives())), COMPOUND_CAVITY, 0.063, 0.075),
     "bin": (CompoundShape(parts=BIN_PARTS), BIN_CAVITY, 0.05, 0.06),
+    # the same bin as a BinShape: its cavity comes from cavity_of
+    "bin_shape": (BinShape(size=(0.16, 0.12, 0.06), wall=0.01), None, 0.05, 0.06),
 }
+BINS = ("bin", "bin_shape")
 
 
 def world(kind: str, container_pose, cube_pose) -> tuple[WorldState, P.Predicate]:
@@ -56,7 +59,7 @@ ON_TABLE = pose(0.0, 0.0, TABLE_TOP)
 @pytest.mark.parametrize("kind", sorted(KINDS))
 def test_just_inside(kind):
     inner = KINDS[kind][2]
-    floor = (BIN_CAVITY if kind == "bin" else COMPOUND_CAVITY).floor
+    floor = (BIN_CAVITY if kind in BINS else COMPOUND_CAVITY).floor
     s, inside = world(kind, ON_TABLE, pose(0.0, inner - CUBE / 2 - 0.002, TABLE_TOP + floor + 0.01))
     assert inside(s)
 
@@ -64,14 +67,14 @@ def test_just_inside(kind):
 @pytest.mark.parametrize("kind", sorted(KINDS))
 def test_on_the_rim_is_not_inside(kind):
     outer = KINDS[kind][3]
-    wall = 0.012 if kind != "bin" else 0.01
+    wall = 0.012 if kind not in BINS else 0.01
     s, inside = world(kind, ON_TABLE, pose(0.0, outer - wall / 2, TABLE_TOP + 0.06 + 0.01))
     assert not inside(s)
 
 
 @pytest.mark.parametrize("kind", sorted(KINDS))
 def test_on_the_table_beside_it_in_the_box_corner_is_not_inside(kind):
-    if kind == "bin":  # a box's corner is inside the bin's inner box: beside it is past the wall
+    if kind in BINS:  # a box's corner is inside the bin's inner box: beside it is past the wall
         xy = (0.0, 0.058)
     else:  # 9.2 cm from the axis, inside the 7.5 cm bounding square's corner
         xy = (0.065, 0.065)
@@ -98,7 +101,7 @@ def test_upside_down_container_holds_nothing(kind):
 
 @pytest.mark.parametrize("kind", sorted(KINDS))
 def test_tilted_container_judged_in_its_frame_up_to_max_tilt(kind):
-    floor = (BIN_CAVITY if kind == "bin" else COMPOUND_CAVITY).floor
+    floor = (BIN_CAVITY if kind in BINS else COMPOUND_CAVITY).floor
     origin = np.array([0.0, 0.0, TABLE_TOP + 0.1])
     for angle, expected in ((math.radians(25), True), (math.radians(60), False)):
         q = quat_about("x", angle)
@@ -107,8 +110,11 @@ def test_tilted_container_judged_in_its_frame_up_to_max_tilt(kind):
         assert inside(s) is expected
 
 
-def test_cavity_of_needs_a_bowl_or_an_explicit_cavity():
+def test_cavity_of_needs_a_bowl_a_bin_or_an_explicit_cavity():
     assert P.cavity_of(BOWL) == COMPOUND_CAVITY
+    cav = P.cavity_of(KINDS["bin_shape"][0])
+    assert (cav.kind, cav.floor, cav.rim) == ("box", BIN_CAVITY.floor, BIN_CAVITY.rim)
+    assert cav.half_xy == pytest.approx(BIN_CAVITY.half_xy)
     s, _ = world("bin", ON_TABLE, pose(0.0, 0.0, TABLE_TOP + 0.02, IDENTITY))
     with pytest.raises(ValueError, match="cavity="):
         P.inside("cube", "box")(s)

@@ -1,4 +1,4 @@
-"""(slow) The four tasks' experts send bit-identical actions to the committed digests.
+"""(slow) The experts of the tasks in CASES send bit-identical actions to the committed digests.
 
 See ``tests/tasks/expert_digests.py`` for what is compared and how to re-record after an
 intended plan change.

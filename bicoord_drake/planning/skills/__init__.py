@@ -17,8 +17,8 @@ module                    skills
 :mod:`.arm`               :func:`move`, :func:`move_tcp`, :func:`solve_tcp`, :func:`grip`,
                           :func:`lift`, :func:`retreat`,
                           :func:`tcp_deviation`
-:mod:`.pick_place`        :func:`pick`, :func:`place`, :func:`carry_above`, :func:`stabilize`,
-                          :func:`release`
+:mod:`.pick_place`        :func:`pick`, :func:`place`, :func:`drop_into`, :func:`carry_above`,
+                          :func:`stabilize`, :func:`release`
 :mod:`.tracking`          :func:`track` (a TCP path at every sample), :func:`push`
 :mod:`.pour`              :func:`pour` (tilt a held container about its rim and back)
 :mod:`.handover`          :func:`handover` (mid-air, both arms arrive at once; options for the
@@ -30,6 +30,9 @@ module                    skills
                           :func:`pick_together`, :func:`grip_together` (same control steps),
                           :func:`track_together` / :func:`carry_together` (the object's path,
                           both arms by one timing), :func:`release_together`
+:mod:`.turns`             :func:`arrive_as_leaves` (turn-taking at a shared spot: one arm
+                          arrives as the other leaves), :func:`arrival_delay`,
+                          :func:`first_step_in_zone`
 ========================  ===================================================================
 
 Every planning failure raises :class:`~bicoord_drake.planning.errors.PlanningError` with a
@@ -69,11 +72,19 @@ from bicoord_drake.planning.skills.handover import (
     handover,
     meet_motion,
 )
-from bicoord_drake.planning.skills.pick_place import carry_above, pick, place, release, stabilize
+from bicoord_drake.planning.skills.pick_place import (
+    carry_above,
+    drop_into,
+    pick,
+    place,
+    release,
+    stabilize,
+)
 from bicoord_drake.planning.skills.pour import pour
 from bicoord_drake.planning.skills.shapes import half_extent
 from bicoord_drake.planning.skills.toss import least_spin_velocity, toss
 from bicoord_drake.planning.skills.tracking import push, track
+from bicoord_drake.planning.skills.turns import arrival_delay, arrive_as_leaves, first_step_in_zone
 
 __all__ = [
     "ArmPlan",
@@ -81,10 +92,14 @@ __all__ = [
     "Motion",
     "ReceiverGrasps",
     "SkillContext",
+    "arrival_delay",
+    "arrive_as_leaves",
     "carry_above",
     "carry_together",
     "crossing_grasps",
+    "drop_into",
     "fingers_cross",
+    "first_step_in_zone",
     "grip",
     "grip_together",
     "half_extent",

@@ -2,6 +2,7 @@
 
 :func:`pick` tries grasp candidates (generated, or given for a part of a compound object)
 until one plans; :func:`place` tries the object's symmetric yaws about the goal;
+:func:`drop_into` lets the held object fall into a container from just above its rim;
 :func:`carry_above` brings the held object over a goal and stops there (a place in two halves,
 so the other arm can work below or finish first);
 :func:`stabilize` grasps an object where it stands and keeps still; :func:`release` opens
@@ -16,7 +17,14 @@ import numpy as np
 from pydrake.all import RigidTransform
 
 from bicoord_drake.planning.errors import PlanningError
-from bicoord_drake.planning.grasps import Grasp, arm_base, grasp_candidates, place_candidates
+from bicoord_drake.planning.grasps import (
+    Grasp,
+    arm_base,
+    bottom_offset,
+    grasp_candidates,
+    place_candidates,
+    top_offset,
+)
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.skills.arm import grip, move, move_tcp, solve_tcp, tcp_deviation
 from bicoord_drake.planning.skills.core import ArmPlan, SkillContext
@@ -120,13 +128,14 @@ def place(
     ignore: Iterable[str] = (),
     opening: float = 1.0,
     release_steps: int | None = None,
+    yaws: Sequence[float] | None = None,
 ) -> ArmPlan:
     """Carry the held object above `X_WO_goal`, lower it there, release and back off.
 
-    The object's symmetric yaws about the goal are tried, most natural first. The gripper
-    opens to `opening` (less than 1 inside a container, so the fingers miss its walls), over
-    `release_steps` control steps if given (a slow release for a light object set on a small
-    support, which a fast one can flick off)."""
+    The object's symmetric yaws about the goal (or `yaws`, rad) are tried, most natural
+    first. The gripper opens to `opening` (less than 1 inside a container, so the fingers miss
+    its walls), over `release_steps` control steps if given (a slow release for a light object
+    set on a small support, which a fast one can flick off)."""
     held = ctx.model.held.get(side)
     if held is None:
         raise PlanningError("gripper_empty", f"{side} holds nothing to place")
@@ -136,7 +145,8 @@ def place(
     reasons = []
     # The model keeps held poses in the gripper link frame; grasps.py works in the TCP frame.
     X_TO = RigidTransform([-ctx.model.embodiment.arm.gripper.tcp_x, 0, 0]) @ held.X_GO
-    for cand in place_candidates(X_TO, X_WO_goal, shape, base=base, lift=approach_height):
+    cands = place_candidates(X_TO, X_WO_goal, shape, base=base, lift=approach_height, yaws=yaws)
+    for cand in cands:
         try:
             q_above = solve_tcp(ctx, side, TcpTarget(cand.X_WPre), ignore=ignore)
             q_place = solve_tcp(
@@ -170,6 +180,43 @@ def place(
         f"{side} cannot place {held.name!r} at "
         f"{np.round(X_WO_goal.translation(), 3)} ({', '.join(reasons)})",
     )
+
+
+def drop_into(
+    ctx: SkillContext,
+    side: str,
+    container: str,
+    *,
+    offset_xy: Sequence[float] = (0.0, 0.0),
+    fall: float = 0.03,
+    lower: float = 0.04,
+    retreat: float = 0.05,
+    yaws: Sequence[float] = tuple(k * np.pi / 4 for k in range(8)),
+) -> ArmPlan:
+    """Carry the held object over the opening of `container`, lower it until its bottom is
+    `fall` (m) above the rim, let go and back off up: the object falls the last few cm (a bin
+    is filled this way; nothing is set down inside it). The drop point is the container's
+    centre shifted by `offset_xy` in the world; the object stays upright, turned by each of
+    `yaws` about the container's axes (most natural first: the wrist turns least)."""
+    held = ctx.model.held.get(side)
+    if held is None:
+        raise PlanningError("gripper_empty", f"{side} holds nothing to drop")
+    X_WC = ctx.model.object_pose(container)
+    rim = X_WC.translation()[2] + top_offset(ctx.model.object(container).shape)
+    shape = ctx.model.object(held.name).shape
+    xy = X_WC.translation()[:2] + np.asarray(offset_xy, dtype=float)
+    z = rim + fall + bottom_offset(shape) - _bottom_below_frame(shape)
+    goal = RigidTransform(X_WC.rotation(), [xy[0], xy[1], z])
+    plan = place(ctx, side, goal, approach_height=lower, retreat=retreat, yaws=yaws)
+    plan.label = f"drop {held.name} into {container}"
+    return plan
+
+
+def _bottom_below_frame(shape) -> float:
+    """How far the shape's lowest point lies below its frame beyond ``bottom_offset``
+    (a compound whose frame is on its bottom: 0)."""
+    lo = min(p.trimesh().bounds[0][2] for p in shape.primitives())
+    return max(0.0, -lo - bottom_offset(shape))
 
 
 def carry_above(

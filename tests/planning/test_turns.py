@@ -1,0 +1,116 @@
+"""Turn-taking at a shared spot (arrive_as_leaves) and dropping into a container (drop_into)."""
+
+import numpy as np
+import pytest
+from pydrake.all import RigidTransform
+
+import bicoord_drake.tasks.clean_table as ct
+from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.grasps import bounding_box_grasps
+from bicoord_drake.planning.model import PlanningModel
+from bicoord_drake.planning.skills import (
+    SkillContext,
+    arrival_delay,
+    arrive_as_leaves,
+    drop_into,
+    first_step_in_zone,
+    move_tcp,
+    retreat,
+)
+from bicoord_drake.stages.predicates import Cavity, cavity_of
+
+RADIUS = 0.12
+LAG = 3
+
+
+@pytest.fixture()
+def scene():
+    return ct.CleanTable().sample_scene(0)
+
+
+def _tcp_dist(ctx, motion, side):
+    cols = ctx.model.side_slice(side)
+    q12 = np.array(ctx.q, dtype=float)
+    out = []
+    for q in motion.q:
+        q12[cols] = q[cols]
+        p = ctx.model.tcp_pose(q12, side).translation()
+        out.append(np.hypot(p[0] - ct.BIN_XY[0], p[1] - ct.BIN_XY[1]))
+    return np.array(out)
+
+
+def _to_bin(ctx, side, dx=0.0):
+    X = ctx.model.tcp_pose(ctx.q, side)
+    above = [ct.BIN_XY[0] + dx, ct.BIN_XY[1], TABLE_TOP + 0.2]
+    return move_tcp(ctx, side, RigidTransform(X.rotation(), above))
+
+
+def test_arriving_arm_enters_the_zone_as_the_other_leaves_it_and_waits_no_longer(scene):
+    ctx = SkillContext(PlanningModel(scene))
+    _to_bin(ctx, "right", 0.03)  # the right arm's TCP over the bin; it leaves from there
+    _to_bin(ctx, "left", -0.14)  # the left one waits just outside the zone
+    leave = retreat(ctx, "right")
+    arrive = _to_bin(ctx, "left", -0.03)
+    delay = arrival_delay(ctx, leave, arrive, ct.BIN_XY, RADIUS, LAG)
+    assert delay > 0  # the left arm would come in too early at its own pace
+    motion = arrive_as_leaves(ctx, leave, arrive, ct.BIN_XY, RADIUS, lag_steps=LAG)
+    right, left = _tcp_dist(ctx, motion, "right"), _tcp_dist(ctx, motion, "left")
+    assert right[0] <= RADIUS and left[-1] <= RADIUS
+    out = int(np.argmax(right > RADIUS))
+    into = int(np.argmax(left <= RADIUS))
+    assert into == out + LAG  # not earlier: never both in the zone; not later: no idle wait
+    assert np.all(right[into:] > RADIUS)
+    # both arms move from the first step on (the arrival is timed, not queued after the leave)
+    assert np.any(motion.q[1, 6:] != motion.q[0, 6:])
+    assert first_step_in_zone(ctx, arrive, ct.BIN_XY, RADIUS) + delay == into
+    # a leaver already outside the zone needs no more than the lag
+    far = arrival_delay(ctx, leave, arrive, (0.5, 0.5), 0.01, LAG)
+    assert far == 0
+
+
+def test_arrive_as_leaves_needs_two_arms(scene):
+    ctx = SkillContext(PlanningModel(scene))
+    plan = _to_bin(ctx, "right")
+    with pytest.raises(ValueError, match="both the right arm"):
+        arrive_as_leaves(ctx, plan, plan, ct.BIN_XY, RADIUS)
+
+
+def test_drop_into_lets_go_just_above_the_opening(scene):
+    ctx = SkillContext(PlanningModel(scene))
+    name = ct.OBJECTS[0]
+    side = scene.draws["first_side"]
+    ct._pick(ctx, side, name)
+    plan = drop_into(ctx, side, "bin", offset_xy=(0.02, 0.01), fall=0.025)
+    assert side not in ctx.model.held and plan.opening[-1] == 1.0
+    assert [k for _, k, n in plan.events if n == name] == ["detach"]
+    X_WO = ctx.model.object_pose(name)
+    shape = ctx.model.object(name).shape
+    bottom = X_WO.translation()[2] + min(p.trimesh().bounds[0][2] for p in shape.primitives())
+    assert bottom == pytest.approx(TABLE_TOP + ct.BIN.size[2] + 0.025, abs=1e-6)  # rim + fall
+    cav: Cavity = cavity_of(ct.BIN)
+    p = X_WO.translation() - [*ct.BIN_XY, TABLE_TOP]
+    assert cav.contains_xy(p) and p[:2] == pytest.approx([0.02, 0.01], abs=1e-9)
+
+
+def test_drop_into_needs_a_held_object(scene):
+    ctx = SkillContext(PlanningModel(scene))
+    with pytest.raises(PlanningError, match="holds nothing"):
+        drop_into(ctx, "left", "bin")
+
+
+def test_bounding_box_grasps_close_across_the_whole_compound(scene):
+    from bicoord_drake.models.objects import toy_car
+
+    ctx = SkillContext(PlanningModel(scene))
+    car = toy_car()
+    X_WO = RigidTransform([0.2, 0.0, TABLE_TOP])
+    gripper = ctx.model.embodiment.arm.gripper
+    grasps = bounding_box_grasps(X_WO, car, gripper)
+    assert grasps and {g.kind for g in grasps} == {"top"}
+    lo = np.min([p.trimesh().bounds[0] for p in car.primitives()], axis=0)
+    hi = np.max([p.trimesh().bounds[1] for p in car.primitives()], axis=0)
+    for g in grasps:
+        np.testing.assert_allclose((X_WO @ g.X_OG).GetAsMatrix4(), g.X_WG.GetAsMatrix4(), atol=1e-9)
+        assert g.width == pytest.approx(hi[0] - lo[0]) or g.width == pytest.approx(hi[1] - lo[1])
+        assert g.approach @ [0, 0, 1] == pytest.approx(-1.0)  # straight down
