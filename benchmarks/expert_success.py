@@ -3,6 +3,7 @@
 
     python benchmarks/expert_success.py --tasks all --seeds 0-29 --workers 2
     python benchmarks/expert_success.py --tasks cook,jigsaw --seeds 0-9
+    python benchmarks/expert_success.py --tasks jigsaw --randomize   # section "jigsaw (randomized)"
 
 For each task, runs the library's ``generate()`` without rendering on every seed of the range
 (into a temporary directory, removed afterwards) and rewrites that task's section of the
@@ -192,8 +193,11 @@ def write_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def run_task(task: str, seeds: range, workers: int, work_dir: Path) -> TaskResult:
-    """Every seed of `seeds` through generate() (no rendering, no video) in `work_dir`."""
+def run_task(
+    task: str, seeds: range, workers: int, work_dir: Path, randomize: bool = False
+) -> TaskResult:
+    """Every seed of `seeds` through generate() (no rendering, no video) in `work_dir`; with
+    `randomize`, on the randomized scenes (textures, table height, clutter)."""
     from bicoord_drake.runner.generate import GenerateConfig, generate
 
     config = GenerateConfig(
@@ -205,6 +209,7 @@ def run_task(task: str, seeds: range, workers: int, work_dir: Path) -> TaskResul
         render=False,
         video=False,
         workers=workers,
+        randomize=randomize,
     )
     commit, dirty = git_state()
     t0 = time.perf_counter()
@@ -212,7 +217,7 @@ def run_task(task: str, seeds: range, workers: int, work_dir: Path) -> TaskResul
     end_commit, end_dirty = git_state()  # the tree may change while the seeds run
     dirty = dirty or end_dirty or code_changed(commit, end_commit)
     return TaskResult(
-        task=task,
+        task=f"{task} (randomized)" if randomize else task,
         seeds=seeds,
         kept=summary.kept,
         tried=summary.tried,
@@ -232,6 +237,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", default="0-29", help="FIRST-LAST, inclusive (default 0-29)")
     parser.add_argument("--workers", type=int, default=1, help="parallel processes (default 1)")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="markdown file to update")
+    parser.add_argument(
+        "--randomize",
+        action="store_true",
+        help="randomized scenes (generate --randomize); sections are named '<task> (randomized)'",
+    )
     args = parser.parse_args(argv)
 
     try:
@@ -248,11 +258,12 @@ def main(argv: list[str] | None = None) -> int:
     for task in tasks:
         print(f"{task}: seeds {seed_text(seeds)} ...", flush=True)
         with tempfile.TemporaryDirectory(prefix=f"expert_success_{task}_") as tmp:
-            result = run_task(task, seeds, args.workers, Path(tmp))
+            result = run_task(task, seeds, args.workers, Path(tmp), args.randomize)
         text = args.out.read_text() if args.out.exists() else ""
-        write_atomic(args.out, update_markdown(text, {task: format_section(result)}))
+        write_atomic(args.out, update_markdown(text, {result.task: format_section(result)}))
         print(
-            f"{task}: kept {result.kept}/{result.tried} in {result.wall_seconds / 60:.1f} min",
+            f"{result.task}: kept {result.kept}/{result.tried} "
+            f"in {result.wall_seconds / 60:.1f} min",
             flush=True,
         )
     print(f"wrote {args.out}")

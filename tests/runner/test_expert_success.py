@@ -123,3 +123,25 @@ def test_only_package_changes_make_a_measurement_dirty(es, tmp_path):
     git("commit", "-qam", "code")
     third, _ = es.git_state(tmp_path)
     assert es.code_changed(first, third, tmp_path)
+
+
+def test_randomize_measures_randomized_scenes_in_their_own_section(es, tmp_path, monkeypatch):
+    from types import SimpleNamespace
+
+    from bicoord_drake.runner import generate as gen
+
+    seen = {}
+
+    def fake_generate(config):
+        seen["config"] = config
+        return SimpleNamespace(kept=3, tried=3, failures=[], mean_length=100.0)
+
+    monkeypatch.setattr(gen, "generate", fake_generate)
+    monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
+    out = tmp_path / "success.md"
+    assert es.main(["--tasks", "jigsaw", "--seeds", "0-2", "--randomize", "--out", str(out)]) == 0
+    assert seen["config"].randomize and not seen["config"].render
+    assert es.main(["--tasks", "jigsaw", "--seeds", "0-2", "--out", str(out)]) == 0
+    assert not seen["config"].randomize
+    text = out.read_text()
+    assert text.count("## jigsaw (randomized)") == 1 and text.count("## jigsaw\n") == 1
