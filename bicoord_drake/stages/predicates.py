@@ -20,7 +20,14 @@ from typing import Literal
 
 import numpy as np
 
-from bicoord_drake.models.objects import BowlShape, BoxShape, CylinderShape, Shape, SphereShape
+from bicoord_drake.models.objects import (
+    BowlShape,
+    BoxShape,
+    CylinderShape,
+    PotShape,
+    Shape,
+    SphereShape,
+)
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.stages.stage import GRIPPER_INDEX, WorldState
 
@@ -279,8 +286,14 @@ class Cavity:
 
 
 def cavity_of(shape: Shape) -> Cavity:
-    """The cavity of a container shape: a :class:`BowlShape`'s inner wall, floor and rim.
-    Other shapes (compounds, boxes) are containers only with an explicit :class:`Cavity`."""
+    """The cavity of a container shape: a :class:`BowlShape`'s or a :class:`PotShape`'s inner
+    wall, floor and rim. Other shapes (compounds, boxes) are containers only with an explicit
+    :class:`Cavity`."""
+    if isinstance(shape, PotShape):
+        inner = shape.radius - shape.wall
+        return Cavity(
+            kind="round", floor=shape.wall, rim=shape.height, floor_radius=inner, rim_radius=inner
+        )
     if isinstance(shape, BowlShape):
         return Cavity(
             kind="round",
