@@ -200,6 +200,18 @@ def _solve_pair(
     )
 
 
+def _solve_near(
+    ctx: SkillContext, X_left: RigidTransform, X_right: RigidTransform, *, ignore: Iterable[str]
+) -> np.ndarray:
+    """Both TCPs at the targets, the joints pulled toward (and seeded from) the current ones
+    instead of the home pose: the IK branch the arms are on now."""
+    ctx.track_ik.nominal = ctx.q.copy()
+    targets = {"left": TcpTarget(X_left), "right": TcpTarget(X_right)}
+    return ctx.track_ik.solve(
+        targets, seed=ctx.q, clearance=ctx.clearance, env_clearance=0.0, ignore=ignore, restarts=3
+    )
+
+
 def _straight_together(
     ctx: SkillContext, q_goal: np.ndarray, *, label: str, ignore: Iterable[str] = ()
 ) -> Motion:
@@ -407,7 +419,15 @@ def release_together(
         q_away = _solve_pair(
             ctx, away["left"], away["right"], seed=ctx.q, ignore=free, env_clearance=0.0
         )
-        back_off = _straight_together(ctx, q_away, label="back off together", ignore=free)
+        try:
+            back_off = _straight_together(ctx, q_away, label="back off together", ignore=free)
+        except PlanningError as err:
+            if err.reason != "not_straight":
+                raise
+            # the IK took another wrist branch (e.g. hands reaching across toward each other):
+            # solve again pulled toward the joints the arms have now
+            q_away = _solve_near(ctx, away["left"], away["right"], ignore=free)
+            back_off = _straight_together(ctx, q_away, label="back off together", ignore=free)
     motion = opened.then(back_off)
     i = opened.num_steps - 1
     motion.events = sorted(motion.events + [(i, side, "detach", name) for side in SIDES])
