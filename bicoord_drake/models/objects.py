@@ -178,6 +178,59 @@ class BinShape(_Shape):
         )
 
 
+class PotShape(_Shape):
+    """A cooking pot: a flat base, straight round walls and two flat lug handles sticking out
+    along the frame's -x and +x at the rim. Its frame is at the centre of the base's underside.
+
+    Collision: a base disc, `segments` wall slabs standing on it and one box per handle
+    (:meth:`handle_indices` names them in :meth:`primitives`); the visual is one smooth solid of
+    revolution with rounded handle tabs."""
+
+    kind: Literal["pot"] = "pot"
+    radius: float = Field(gt=0, description="outer wall radius, m")
+    height: float = Field(gt=0, description="rim height above the base's underside, m")
+    wall: float = Field(0.006, gt=0, description="wall and base thickness, m")
+    segments: int = Field(16, ge=6, le=48)
+    handle_reach: float = Field(0.035, gt=0, description="how far a handle sticks out, m")
+    handle_width: float = Field(0.05, gt=0, description="handle extent along the wall, m")
+    handle_thickness: float = Field(0.012, gt=0, description="handle plate thickness, m")
+    handle_drop: float = Field(0.004, ge=0, description="handle top below the rim, m")
+
+    def handle_indices(self) -> tuple[int, int]:
+        """Indices in :meth:`primitives` of the -x and the +x handle."""
+        return (self.segments + 1, self.segments + 2)
+
+    def handle_pose(self, sign: float) -> Pose:
+        """Pose (object frame) of the handle on the `sign` (-1 or +1) side of x."""
+        x = sign * (self.radius + self.handle_reach / 2 - 0.002)
+        z = self.height - self.handle_drop - self.handle_thickness / 2
+        return Pose(xyz=(float(x), 0.0, float(z)))
+
+    def _handles(self) -> list[Primitive]:
+        size = (self.handle_reach + 0.004, self.handle_width, self.handle_thickness)
+        return [Primitive(kind="box", size=size, pose=self.handle_pose(s)) for s in (-1.0, 1.0)]
+
+    def primitives(self) -> list[Primitive]:
+        bowl = BowlShape(
+            radius=self.radius,
+            base_radius=self.radius,
+            height=self.height,
+            wall=self.wall,
+            segments=self.segments,
+            walls_on_base=True,
+        )
+        return bowl.primitives() + self._handles()
+
+    def visual_mesh(self) -> trimesh.Trimesh:
+        r, w, h = self.radius, self.wall, self.height
+        profile = np.array(
+            [[0.0, 0.0], [r, 0.0], [r, h], [r - w, h], [r - w, w], [0.0, w]], dtype=float
+        )
+        body = trimesh.creation.revolve(profile, sections=48)
+        tabs = [p.trimesh(smooth=0.4 * self.handle_thickness) for p in self._handles()]
+        return trimesh.util.concatenate([body, *tabs])
+
+
 class CompoundShape(_Shape):
     """A rigid union of primitives in the object frame (a skillet = bowl slabs + a handle bar,
     a microphone = a handle cylinder + a ball head, ...). Collision uses exactly these parts."""
@@ -233,7 +286,14 @@ class MugShape(_Shape):
 
 
 Shape = Annotated[
-    BoxShape | CylinderShape | SphereShape | BowlShape | BinShape | CompoundShape | MugShape,
+    BoxShape
+    | CylinderShape
+    | SphereShape
+    | BowlShape
+    | BinShape
+    | PotShape
+    | CompoundShape
+    | MugShape,
     Field(discriminator="kind"),
 ]
 

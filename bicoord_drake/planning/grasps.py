@@ -16,7 +16,8 @@ Shapes:
   lying; spheres: ``top``;
 - bowls: ``rim`` (vertical approach, fingers straddling the wall);
 - handles (:func:`handle_grasps`): a bar given as a box or cylinder part pose, approached
-  perpendicular to its long axis.
+  perpendicular to its long axis; pots (:func:`pot_handle_grasps`): each lug handle from
+  outside, a horizontal approach toward the pot's axis, the pads pinching the handle's plate.
 
 Place poses: :func:`place_pose` turns a target object pose and the grasp transform ``X_GO``
 (object in gripper) into the TCP pose; :func:`table_target` / :func:`stack_target` build target
@@ -41,6 +42,7 @@ from bicoord_drake.models.objects import (
     BoxShape,
     CompoundShape,
     CylinderShape,
+    PotShape,
     SceneObject,
     SphereShape,
 )
@@ -455,6 +457,8 @@ def grasp_candidates(
     shape = obj.shape
     if isinstance(shape, CompoundShape):
         grasps = compound_grasps(X, shape, gripper, base=base, params=params, parts=parts)
+    elif isinstance(shape, PotShape):
+        grasps = pot_handle_grasps(X, shape, gripper, base=base, params=params)
     elif parts is not None:
         raise ValueError(f"parts= applies to compound shapes, not {shape.kind}")
     else:
@@ -474,6 +478,34 @@ def _shape_grasps(X_WO, shape, gripper, base, params) -> list[Grasp]:
     if isinstance(shape, SphereShape):
         return sphere_grasps(X_WO, shape, gripper, base=base, params=params)
     return bowl_rim_grasps(X_WO, shape, gripper, base=base, params=params)
+
+
+def pot_handle_grasps(
+    X_WO: RigidTransform,
+    shape: PotShape,
+    gripper: GripperSpec,
+    *,
+    base: np.ndarray | None = None,
+    params: GraspParams = GraspParams(),
+    handles: Sequence[float] = (-1.0, 1.0),
+) -> list[Grasp]:
+    """Horizontal grasps of a pot's lug handles (`handles`: -1 for the one on the pot's -x,
+    +1 for +x), best first: the approach points from outside toward the pot's axis (within
+    45 degrees of horizontal), the fingers close on the handle plate's top and bottom faces.
+    ``X_OG`` is relative to the pot's frame, so holding a handle holds the pot."""
+    X_OW = X_WO.inverse()
+    out = []
+    for sign in handles:
+        if sign not in (-1.0, 1.0):
+            raise ValueError(f"a pot handle is -1 or +1, not {sign}")
+        part = shape.primitives()[shape.handle_indices()[0 if sign < 0 else 1]]
+        X_WH = X_WO @ RigidTransform(part.pose.matrix())
+        outward = sign * X_WO.rotation().col(0)
+        for g in handle_grasps(X_WH, part_shape(part), gripper, base=base, params=params):
+            if g.approach @ outward > -np.cos(np.pi / 4) or abs(g.approach[2]) > 0.5:
+                continue
+            out.append(Grasp(g.kind, g.X_WG, g.X_WPre, X_OW @ g.X_WG, g.width, g.score))
+    return sorted(out, key=lambda g: -g.score)
 
 
 def part_shape(part: Primitive) -> BoxShape | CylinderShape | SphereShape:

@@ -25,6 +25,7 @@ from bicoord_drake.models.objects import (
     BowlShape,
     BoxShape,
     CylinderShape,
+    PotShape,
     Shape,
     SphereShape,
 )
@@ -224,6 +225,34 @@ def rests_on(a: str, b: str, xy_tol: float = 0.02, z_tol: float = 0.006) -> Pred
     return Predicate(check, f"rests_on({a!r}, {b!r}, xy_tol={xy_tol}, z_tol={z_tol})")
 
 
+def spans(beam: str, supports: Sequence[str], z_tol: float = 0.006) -> Predicate:
+    """`beam` lies across every one of `supports` (a bridge on its piers): each support's top
+    face centre is under the beam's footprint (within its length and width, in the beam's
+    frame) and the beam's lowest point is within `z_tol` of each support's top. A beam with one
+    end on the table, beside a support or hovering over it does not span it."""
+    supports = tuple(supports)
+    if not supports:
+        raise ValueError("spans needs at least one support")
+
+    def check(s: WorldState) -> bool:
+        lo, hi = local_bounds(s.shape(beam))
+        R, p = s.rotation(beam), s.position(beam)
+        bottom = lowest_z(s, beam)
+        for b in supports:
+            top = top_z(s, b)
+            if abs(bottom - top) > z_tol:
+                return False
+            c = centre(s, b)
+            local = R.T @ (np.array([c[0], c[1], top]) - p)
+            horizontal = [i for i in range(3) if abs(R[2, i]) < math.sqrt(0.5)]
+            if not all(lo[i] <= local[i] <= hi[i] for i in horizontal):
+                return False
+        return True
+
+    names = ", ".join(map(repr, supports))
+    return Predicate(check, f"spans({beam!r}, [{names}], z_tol={z_tol})")
+
+
 def above(a: str, b: str, xy_tol: float = 0.04, min_dz: float = 0.02) -> Predicate:
     """`a` over `b` (e.g. a nested bowl): frames within `xy_tol` in xy, a at least `min_dz`
     higher."""
@@ -277,11 +306,16 @@ class Cavity:
 
 
 def cavity_of(shape: Shape) -> Cavity:
-    """The cavity of a container shape: a :class:`BowlShape`'s inner wall, floor and rim; a
-    :class:`BinShape`'s inner box above its floor. Other shapes (compounds, boxes) are
-    containers only with an explicit :class:`Cavity`."""
+    """The cavity of a container shape: a :class:`BowlShape`'s or a :class:`PotShape`'s inner
+    wall, floor and rim; a :class:`BinShape`'s inner box above its floor. Other shapes
+    (compounds, boxes) are containers only with an explicit :class:`Cavity`."""
     if isinstance(shape, BinShape):
         return Cavity(kind="box", floor=shape.wall, rim=shape.size[2], half_xy=shape.inner_half)
+    if isinstance(shape, PotShape):
+        inner = shape.radius - shape.wall
+        return Cavity(
+            kind="round", floor=shape.wall, rim=shape.height, floor_radius=inner, rim_radius=inner
+        )
     if isinstance(shape, BowlShape):
         return Cavity(
             kind="round",
@@ -511,6 +545,17 @@ def settled(
 ) -> HeldFor:
     """Every one of `objects` at rest (:func:`at_rest`), without a break, for `seconds`."""
     return held_for(all_of(*[at_rest(o, linear_tol, angular_tol) for o in objects]), seconds)
+
+
+def spaced(a: str, b: str, distance: float, tol: float = 0.02) -> Predicate:
+    """The xy distance between the centres of `a` and `b` within `tol` of `distance` (e.g.
+    two piers set a beam's length apart)."""
+
+    def check(s: WorldState) -> bool:
+        d = float(np.linalg.norm(centre(s, a)[:2] - centre(s, b)[:2]))
+        return abs(d - distance) <= tol
+
+    return Predicate(check, f"spaced({a!r}, {b!r}, {distance:.3f}, tol={tol})")
 
 
 def within_xy(obj: str, target_xy: Sequence[float], tol: float = 0.02) -> Predicate:

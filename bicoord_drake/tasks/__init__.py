@@ -11,6 +11,7 @@ from bicoord_drake.tasks.registry import get_task, list_tasks, register_task
 #: Task modules imported (and so registered) with this package.
 TASK_MODULES: tuple[str, ...] = (
     "balance_roller",
+    "build_bridge",
     "build_tower_with_blocks",
     "clean_table",
     "cook",

@@ -204,3 +204,52 @@ def test_box_rounding_changes_only_the_visual():
 
     expected = Primitive(kind="box", size=plain.size).trimesh(smooth=0.06 * 0.025)
     np.testing.assert_allclose(plain.visual_mesh().vertices, expected.vertices)
+
+
+def test_pot_is_an_open_round_wall_with_two_handles_at_the_rim():
+    from bicoord_drake.models.objects import PotShape
+
+    pot = PotShape(radius=0.07, height=0.08, segments=16)
+    prims = pot.primitives()
+    assert len(prims) == 1 + 16 + 2  # base disc, wall slabs, two handle plates
+    left, right = (prims[i] for i in pot.handle_indices())
+    for handle, sign in ((left, -1.0), (right, 1.0)):
+        x, y, z = handle.pose.xyz
+        assert handle.kind == "box" and sign * x > pot.radius and y == 0.0
+        # reaches from the wall outward, its top just under the rim
+        assert abs(x) - handle.size[0] / 2 < pot.radius < abs(x) + handle.size[0] / 2
+        assert z + handle.size[2] / 2 == pytest.approx(pot.height - pot.handle_drop)
+    # the wall slabs stand on the base: only the disc touches the support, the inside is open
+    for p in prims[1:17]:
+        assert p.pose.xyz[2] - p.size[2] / 2 >= pot.wall - 1e-9
+        assert np.hypot(*p.pose.xyz[:2]) > pot.radius - pot.wall - 1e-9
+    mesh = pot.visual_mesh()
+    lo, hi = mesh.bounds
+    assert hi[0] == pytest.approx(pot.radius + pot.handle_reach, abs=0.003)
+    assert lo[0] == pytest.approx(-hi[0], abs=1e-6) and hi[2] == pytest.approx(pot.height)
+    # open: every vertex inside the inner wall lies on the base (underside or inner floor)
+    v = mesh.vertices
+    inner = np.hypot(v[:, 0], v[:, 1]) < pot.radius - pot.wall - 1e-6
+    assert inner.any() and np.all(np.isin(np.round(v[inner, 2], 9), [0.0, pot.wall]))
+
+
+def test_pot_stands_in_physics_and_is_a_container():
+    from bicoord_drake.config import StationConfig
+    from bicoord_drake.models.geometry import Pose
+    from bicoord_drake.models.objects import PotShape
+    from bicoord_drake.models.scene import TABLE_TOP
+    from bicoord_drake.sim.simulation import Simulation
+    from bicoord_drake.sim.station import build_station
+    from bicoord_drake.stages.predicates import cavity_of
+
+    pot = PotShape(radius=0.07, height=0.08)
+    cav = cavity_of(pot)
+    assert cav.floor == pot.wall and cav.rim == pot.height
+    assert cav.floor_radius == cav.rim_radius == pytest.approx(pot.radius - pot.wall)
+    obj = SceneObject(name="pot", shape=pot, mass=0.3, pose=Pose(xyz=(0.0, 0.0, TABLE_TOP)))
+    _, com, _ = inertial_of(pot.primitives(), 0.3)
+    assert 0 < com[2] < pot.height / 2 and abs(com[0]) < 1e-9  # the handles balance
+    sim = Simulation(build_station(Scene(objects=(obj,)), StationConfig(render=False)))
+    for _ in range(10):
+        sim.step(sim.station.embodiment.home_action())
+    assert sim.object_poses()["pot"][2] == pytest.approx(TABLE_TOP, abs=0.002)

@@ -210,3 +210,60 @@ def test_two_hands_lift_and_carry_a_bar_in_physics():
     assert sim.finger_contacts()["bar"] == set()
     assert np.linalg.norm(bar[:2] - down.translation()[:2]) < 0.01
     assert abs(bar[2] - (TABLE_TOP + 0.02)) < 0.003
+
+
+def test_a_pot_is_held_by_its_two_handles_left_hand_on_the_left():
+    from pydrake.all import RollPitchYaw
+
+    from bicoord_drake.models.objects import PotShape
+
+    pot = PotShape(radius=0.07, height=0.08)
+    # turned half a turn: its +x handle is on the world's left
+    obj = SceneObject(
+        name="pot", shape=pot, mass=0.3, pose=Pose(xyz=(0.0, -0.1, TABLE_TOP), rpy=(0, 0, 3.0))
+    )
+    ctx = sk.SkillContext(PlanningModel(Scene(name="pot", objects=(obj,))), speed=0.75)
+    pairs = sk.two_hand_grasps(ctx, "pot")
+    same = sk.handle_pairs(ctx, "pot")
+    assert [p.score for p in pairs] == [p.score for p in same]
+    assert all(a.score >= b.score for a, b in zip(pairs, pairs[1:], strict=False))
+    for pair in pairs:
+        left, right = pair.left.X_WG.translation(), pair.right.X_WG.translation()
+        assert left[0] < -pot.radius and right[0] > pot.radius
+        assert pair.left.approach[0] > 0.9 and pair.right.approach[0] < -0.9  # from outside
+    # both reach their handle at once, the model then holds the pot with both hands
+    motion = sk.pick_together(ctx, "pot", lift=0.05)
+    assert ctx.model.held_together == "pot"
+    X = ctx.model.held_pose("left", ctx.q)
+    assert X.translation()[2] == pytest.approx(TABLE_TOP + 0.05, abs=1e-3)
+    assert RollPitchYaw(X.rotation()).yaw_angle() == pytest.approx(3.0, abs=1e-3)
+    assert motion.num_steps > 0
+    with pytest.raises(PlanningError):
+        sk.handle_pairs(sk.SkillContext(PlanningModel(bar_scene())), "bar")
+
+
+def test_release_together_backs_off_on_the_branch_the_arms_are_on():
+    """Two hands carry a pot by its handles 40 cm to the right and set it down: the back-off
+    after the release is solved toward the arms' current joints when the home-pulled IK answer
+    lies on another wrist branch (the TCPs would sweep arcs instead of backing straight off)."""
+    from bicoord_drake.models.objects import PotShape
+
+    pot = PotShape(radius=0.06, height=0.08)
+    obj = SceneObject(name="pot", shape=pot, mass=0.3, pose=Pose(xyz=(-0.15, -0.17, TABLE_TOP)))
+    ctx = sk.SkillContext(PlanningModel(Scene(name="pot", objects=(obj,))), speed=0.8)
+    sk.pick_together(ctx, "pot", lift=0.05)
+    X = ctx.model.held_pose("left", ctx.q)
+    sk.carry_together(ctx, RigidTransform(X.rotation(), [0.25, -0.17, TABLE_TOP + 0.05]))
+    down = RigidTransform(X.rotation(), [0.25, -0.17, TABLE_TOP + 0.002])
+    sk.carry_together(ctx, down, ignore=["pot"])
+    before = {s: ctx.model.tcp_pose(ctx.q, s) for s in ("left", "right")}
+    q = ctx.q.copy()
+    motion = sk.release_together(ctx)
+    assert ctx.model.held_together is None
+    for i, side in enumerate(("left", "right")):
+        after = ctx.model.tcp_pose(ctx.q, side)
+        back = before[side].translation() - 0.06 * before[side].rotation().col(0)
+        assert np.linalg.norm(after.translation() - back) < 2e-3
+        sl = slice(6 * i, 6 * i + 6)
+        assert np.max(np.abs(ctx.q[sl] - q[sl])) < 0.5  # no wrist flip
+    assert motion.num_steps > 0

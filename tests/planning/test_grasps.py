@@ -368,3 +368,32 @@ def test_pose_to_transform_matches_pose_matrix():
     pose = Pose(xyz=(0.1, 0.2, 0.8), rpy=(0.1, -0.2, 0.7))
     obj = SceneObject(name="o", shape=SphereShape(radius=0.02), pose=pose)
     assert np.allclose(pose_to_transform(obj).GetAsMatrix4(), pose.matrix())
+
+
+def test_pot_handles_are_grasped_from_outside_horizontally():
+    from bicoord_drake.models.objects import PotShape, SceneObject
+    from bicoord_drake.planning.grasps import grasp_candidates, pot_handle_grasps
+
+    gripper = get_embodiment("aloha_viperx").arm.gripper
+    pot = PotShape(radius=0.07, height=0.08)
+    yaw = 0.3
+    X_WO = RigidTransform(RollPitchYaw(0, 0, yaw), [0.1, -0.1, TABLE_TOP])
+    for sign in (-1.0, 1.0):
+        grasps = pot_handle_grasps(X_WO, pot, gripper, handles=(sign,))
+        assert grasps
+        outward = sign * X_WO.rotation().col(0)
+        handle = X_WO @ RigidTransform(pot.handle_pose(sign).matrix())
+        for g in grasps:
+            assert g.kind == "handle"
+            assert g.approach @ outward < -0.99  # toward the pot's axis, horizontal
+            assert abs(g.finger_axis[2]) > 0.99  # pads on the plate's top and bottom
+            assert g.width == pytest.approx(pot.handle_thickness)
+            # the TCP on the handle, not inside the pot
+            p = g.X_WG.translation()
+            assert abs(p[2] - handle.translation()[2]) < 1e-9
+            assert np.linalg.norm(p[:2] - X_WO.translation()[:2]) > pot.radius
+            assert (X_WO @ g.X_OG).IsNearlyEqualTo(g.X_WG, 1e-9)
+    obj = SceneObject(name="pot", shape=pot, pose=Pose(xyz=(0.1, -0.1, TABLE_TOP)))
+    assert {g.kind for g in grasp_candidates(obj, gripper)} == {"handle"}
+    with pytest.raises(ValueError):
+        pot_handle_grasps(X_WO, pot, gripper, handles=(0.0,))

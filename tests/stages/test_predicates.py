@@ -241,3 +241,57 @@ def test_rests_on_a_cube_and_not_beside_above_or_on_the_table():
     beside = _roller_on_large()
     beside[1:3] = (0.07, TABLE_TOP + 0.02)
     assert not on(state(poses={"roller": beside}))  # on the table, next to the cube
+
+
+def _bridge_scene():
+    from bicoord_drake.models.geometry import Pose
+    from bicoord_drake.models.objects import BoxShape, SceneObject
+    from bicoord_drake.models.scene import Scene, cube
+
+    beam = SceneObject(
+        name="beam",
+        shape=BoxShape(size=(0.30, 0.05, 0.05)),
+        pose=Pose(xyz=(0.0, 0.1, TABLE_TOP + 0.025)),
+    )
+    return Scene(
+        name="bridge",
+        objects=(beam, cube("a", -0.125, 0.0, size=0.05), cube("b", 0.125, 0.0, size=0.05)),
+    )
+
+
+def test_spans_both_piers_and_not_one_end_beside_or_hovering():
+    sc = _bridge_scene()
+    across = P.spans("beam", ["a", "b"])
+    top = TABLE_TOP + 0.05 + 0.025  # the beam's centre when it lies on the piers
+    assert across(state(sc, poses={"beam": pose(0.0, 0.0, top)}))
+    # shifted 2 cm along or across: both piers still under it
+    assert across(state(sc, poses={"beam": pose(0.02, 0.015, top)}))
+    # turned 10 degrees about z: still across both
+    assert across(state(sc, poses={"beam": pose(0.0, 0.0, top, quat_about("z", 0.17))}))
+    # the initial state: on the table beside the piers
+    assert not across(state(sc))
+    # slid 4 cm across: the piers' centres are no longer under it
+    assert not across(state(sc, poses={"beam": pose(0.0, 0.04, top)}))
+    # slid along so that one end is past pier b: pier a's centre beyond the beam's end
+    assert not across(state(sc, poses={"beam": pose(0.16, 0.0, top)}))
+    # hovering 2 cm above them (still held)
+    assert not across(state(sc, poses={"beam": pose(0.0, 0.0, top + 0.02)}))
+    # one end on pier b, the other on the table: tilted, its lowest corner below pier a's top
+    tilt = math.atan2(0.05, 0.25)
+    tilted = pose(0.0, 0.0, TABLE_TOP + 0.05, quat_about("y", tilt))
+    assert not across(state(sc, poses={"beam": tilted}))
+    # pier a tipped onto an edge (its top 2 cm above the beam's bottom) under one end
+    low = pose(-0.125, 0.0, TABLE_TOP + 0.035, quat_about("x", math.pi / 4))
+    assert not across(state(sc, poses={"beam": pose(0.0, 0.0, top), "a": low}))
+    with pytest.raises(ValueError):
+        P.spans("beam", [])
+
+
+def test_spaced_measures_the_xy_distance_of_the_centres():
+    sc = _bridge_scene()
+    assert P.spaced("a", "b", 0.25, tol=0.01)(state(sc))
+    assert not P.spaced("a", "b", 0.20, tol=0.04)(state(sc))
+    lifted = pose(0.125, 0.0, TABLE_TOP + 0.2)  # height does not count
+    assert P.spaced("a", "b", 0.25, tol=0.01)(state(sc, poses={"b": lifted}))
+    closer = pose(0.05, 0.0, TABLE_TOP + 0.025)
+    assert not P.spaced("a", "b", 0.25, tol=0.04)(state(sc, poses={"b": closer}))

@@ -26,7 +26,8 @@ module                    skills
                           :func:`crossing_grasps`, :func:`meet_motion`
 :mod:`.toss`              :func:`toss` (a throw released on the control grid into a container
                           the other arm holds under the predicted landing point)
-:mod:`.bimanual`          two hands on one object: :func:`two_hand_grasps` (chosen together),
+:mod:`.bimanual`          two hands on one object: :func:`two_hand_grasps` (chosen together;
+                          a pot by its two handles: :func:`handle_pairs`),
                           :func:`pick_together`, :func:`grip_together` (same control steps),
                           :func:`track_together` / :func:`carry_together` (the object's path,
                           both arms by one timing), :func:`release_together`
@@ -59,6 +60,7 @@ from bicoord_drake.planning.skills.bimanual import (
     GraspPair,
     carry_together,
     grip_together,
+    handle_pairs,
     pick_together,
     release_together,
     track_together,
@@ -102,6 +104,7 @@ __all__ = [
     "first_step_in_zone",
     "grip",
     "grip_together",
+    "handle_pairs",
     "half_extent",
     "handover",
     "hold",

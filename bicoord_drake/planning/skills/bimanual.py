@@ -30,9 +30,15 @@ import numpy as np
 from pydrake.all import PiecewiseQuaternionSlerp, RigidTransform, RotationMatrix
 
 from bicoord_drake.models.embodiment import SIDES
-from bicoord_drake.models.objects import BoxShape, CylinderShape
+from bicoord_drake.models.objects import BoxShape, CylinderShape, PotShape
 from bicoord_drake.planning.errors import PlanningError
-from bicoord_drake.planning.grasps import Grasp, arm_base, grasp_candidates, naturalness
+from bicoord_drake.planning.grasps import (
+    Grasp,
+    arm_base,
+    grasp_candidates,
+    naturalness,
+    pot_handle_grasps,
+)
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.skills.arm import grip, tcp_deviation
 from bicoord_drake.planning.skills.core import Motion, SkillContext, combine
@@ -90,9 +96,13 @@ def two_hand_grasps(
 ) -> list[GraspPair]:
     """Grasp pairs of object `name` (at `X_WO`, default its planning pose), best first: each
     hand `inset` (m) in from its end of the long axis, the two symmetric about the centre;
-    grasps whose approach or fingers run along the long axis are left out."""
+    grasps whose approach or fingers run along the long axis are left out. A pot
+    (:class:`~bicoord_drake.models.objects.PotShape`) is held by its two handles instead
+    (:func:`handle_pairs`; `inset` and `kinds` do not apply)."""
     obj = ctx.model.object(name)
     X_WO = ctx.model.object_pose(name) if X_WO is None else X_WO
+    if isinstance(obj.shape, PotShape):
+        return handle_pairs(ctx, name, X_WO=X_WO)
     R = X_WO.rotation().matrix()
     axis = long_axis(obj.shape, R)
     offset = half_extent(obj.shape, R, axis) - inset
@@ -117,6 +127,32 @@ def two_hand_grasps(
     pairs = [GraspPair(a, b, sa + sb) for a, sa in per_side["left"] for b, sb in per_side["right"]]
     if not pairs:
         raise PlanningError("no_grasp", f"no two-handed grasp of {name!r} of kinds {list(kinds)}")
+    return sorted(pairs, key=lambda p: -p.score)
+
+
+def handle_pairs(
+    ctx: SkillContext, name: str, *, X_WO: RigidTransform | None = None
+) -> list[GraspPair]:
+    """Grasp pairs of a pot `name` by its two lug handles, best first: the left hand on the
+    handle with the smaller world x, the right on the other, each a horizontal grasp from
+    outside (:func:`~bicoord_drake.planning.grasps.pot_handle_grasps`)."""
+    obj = ctx.model.object(name)
+    if not isinstance(obj.shape, PotShape):
+        raise PlanningError("unsupported_shape", f"{name!r} is a {obj.shape.kind}, not a pot")
+    X_WO = ctx.model.object_pose(name) if X_WO is None else X_WO
+    gripper = ctx.model.embodiment.arm.gripper
+    x_axis = X_WO.rotation().col(0)
+    # the handle at +x of the pot frame is the right hand's if that axis points to world +x
+    right_sign = 1.0 if x_axis[0] >= 0 else -1.0
+    per_side = {}
+    for side, sign in (("left", -right_sign), ("right", right_sign)):
+        base = arm_base(ctx.model.embodiment, side)
+        per_side[side] = pot_handle_grasps(X_WO, obj.shape, gripper, base=base, handles=(sign,))
+    pairs = [
+        GraspPair(a, b, a.score + b.score) for a in per_side["left"] for b in per_side["right"]
+    ]
+    if not pairs:
+        raise PlanningError("no_grasp", f"no two-handed handle grasp of {name!r}")
     return sorted(pairs, key=lambda p: -p.score)
 
 
@@ -161,6 +197,18 @@ def _solve_pair(
         seed=seed,
         ignore=ignore,
         restarts=restarts,
+    )
+
+
+def _solve_near(
+    ctx: SkillContext, X_left: RigidTransform, X_right: RigidTransform, *, ignore: Iterable[str]
+) -> np.ndarray:
+    """Both TCPs at the targets, the joints pulled toward (and seeded from) the current ones
+    instead of the home pose: the IK branch the arms are on now."""
+    ctx.track_ik.nominal = ctx.q.copy()
+    targets = {"left": TcpTarget(X_left), "right": TcpTarget(X_right)}
+    return ctx.track_ik.solve(
+        targets, seed=ctx.q, clearance=ctx.clearance, env_clearance=0.0, ignore=ignore, restarts=3
     )
 
 
@@ -371,7 +419,15 @@ def release_together(
         q_away = _solve_pair(
             ctx, away["left"], away["right"], seed=ctx.q, ignore=free, env_clearance=0.0
         )
-        back_off = _straight_together(ctx, q_away, label="back off together", ignore=free)
+        try:
+            back_off = _straight_together(ctx, q_away, label="back off together", ignore=free)
+        except PlanningError as err:
+            if err.reason != "not_straight":
+                raise
+            # the IK took another wrist branch (e.g. hands reaching across toward each other):
+            # solve again pulled toward the joints the arms have now
+            q_away = _solve_near(ctx, away["left"], away["right"], ignore=free)
+            back_off = _straight_together(ctx, q_away, label="back off together", ignore=free)
     motion = opened.then(back_off)
     i = opened.num_steps - 1
     motion.events = sorted(motion.events + [(i, side, "detach", name) for side in SIDES])
