@@ -1,4 +1,5 @@
-"""How a scene looks: table and floor textures, lights, table height and the head camera's jitter.
+"""How a scene looks: table and floor textures, lights, table height, the head camera's jitter
+and the task objects' colours.
 
 An :class:`Appearance` changes nothing the physics or the expert sees: it is drawn per episode
 (:func:`sample_appearance`) from the seed on its own random stream, stored in the scene (and
@@ -10,6 +11,7 @@ stripes), made once and cached on disk. The *seen* split (generation) and the *u
 
 from __future__ import annotations
 
+import colorsys
 import hashlib
 import os
 import tempfile
@@ -20,7 +22,8 @@ import numpy as np
 from PIL import Image
 from pydantic import BaseModel, ConfigDict, Field
 
-from bicoord_drake.models.geometry import mesh_cache_dir
+from bicoord_drake.models.geometry import Rgba, mesh_cache_dir
+from bicoord_drake.models.objects import SceneObject
 
 Split = Literal["seen", "unseen"]
 TextureKind = Literal["wood", "stone", "fabric", "stripes"]
@@ -157,6 +160,41 @@ def sample_appearance(seed: int, split: Split = "seen") -> Appearance:
         head_camera_tilt=tuple(round(float(v), 4) for v in rng.uniform(-0.03, 0.03, 2)),
         table_raise=round(float(rng.uniform(-0.03, 0.03)), 4),
     )
+
+
+#: Below this HSV saturation a colour is a grey (white, black, steel): only its brightness moves.
+GREY_SATURATION = 0.15
+
+
+def recolor_objects(seed: int, objects: tuple[SceneObject, ...]) -> tuple[SceneObject, ...]:
+    """`objects` with new colours drawn from the seed (its own random stream). One hue rotation
+    for the whole scene, so colours that differed keep their hue difference, and one new colour
+    per old colour, so equal colours stay equal (same-colour cubes, a cube and the sign of its
+    colour); saturation and brightness move a little per colour; greys (white squares, a black
+    base) change brightness only. Objects marked ``color_fixed`` and distractors keep theirs."""
+    rng = np.random.default_rng([seed, 0xC0102])
+    rotation = rng.uniform(0.0, 1.0)
+    changes = [o for o in objects if not (o.color_fixed or o.distractor)]
+    new: dict[Rgba, Rgba] = {}
+    for obj in changes:
+        if obj.color not in new:
+            new[obj.color] = _shifted(obj.color, rotation, rng)
+    keep = {id(o) for o in objects} - {id(o) for o in changes}
+    return tuple(
+        o if id(o) in keep else o.model_copy(update={"color": new[o.color]}) for o in objects
+    )
+
+
+def _shifted(color: Rgba, rotation: float, rng: np.random.Generator) -> Rgba:
+    """`color` with its hue rotated by `rotation` (of a turn), saturation scaled and brightness
+    moved by a draw; a grey keeps its (absent) hue and saturation."""
+    h, s, v = colorsys.rgb_to_hsv(*color[:3])
+    scale, dv = rng.uniform(0.8, 1.15), rng.uniform(-0.1, 0.1)
+    if s >= GREY_SATURATION:
+        h, s = (h + rotation) % 1.0, float(np.clip(s * scale, GREY_SATURATION, 1.0))
+    v = float(np.clip(v + dv, 0.05, 0.97))
+    r, g, b = colorsys.hsv_to_rgb(h, s, v)
+    return (round(r, 3), round(g, 3), round(b, 3), color[3])
 
 
 # --------------------------------------------------------------------------- textures

@@ -378,6 +378,11 @@ class SceneObject(BaseModel):
     distractor: bool = Field(
         False, description="clutter added by randomization: a real body, but not part of the task"
     )
+    color_fixed: bool = Field(
+        False,
+        description="the colour is part of what the object is (a red stove, a bread roll): "
+        "randomized scenes keep it",
+    )
 
 
 def object_sdf(obj: SceneObject) -> str:

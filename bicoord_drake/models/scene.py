@@ -11,7 +11,12 @@ from collections.abc import Callable
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from bicoord_drake.models.appearance import Appearance, Split, sample_appearance
+from bicoord_drake.models.appearance import (
+    Appearance,
+    Split,
+    recolor_objects,
+    sample_appearance,
+)
 from bicoord_drake.models.clutter import sample_clutter
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
@@ -45,9 +50,11 @@ class Scene(BaseModel):
 
     def randomized(self, split: Split = "seen") -> Scene:
         """This scene randomized from its seed: the appearance of `split` (textures from that
-        split, lights, table height, head-camera jitter) and 2-8 distractors placed clear of
-        the task's objects (:func:`~bicoord_drake.models.clutter.sample_clutter`); the task's
-        objects and poses unchanged. Randomizing twice is an error."""
+        split, lights, table height, head-camera jitter), new colours for the task's objects
+        where the task does not fix them (:func:`~bicoord_drake.models.appearance.
+        recolor_objects`) and 2-8 distractors placed clear of the task's objects
+        (:func:`~bicoord_drake.models.clutter.sample_clutter`); the task's objects, poses,
+        shapes and masses unchanged. Randomizing twice is an error."""
         if self.seed is None:
             raise ValueError("only a scene drawn from a seed can be randomized")
         if self.appearance is not None or self.distractors:
@@ -56,7 +63,7 @@ class Scene(BaseModel):
         return self.model_copy(
             update={
                 "appearance": sample_appearance(self.seed, split),
-                "objects": self.objects + clutter,
+                "objects": recolor_objects(self.seed, self.objects) + clutter,
             }
         )
 

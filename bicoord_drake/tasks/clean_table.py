@@ -169,6 +169,7 @@ class CleanTable(Task):
                     name=name,
                     shape=shape,
                     color=color,
+                    color_fixed=kind == "bread",  # a loaf stays loaf-coloured when randomized
                     mass=mass,
                     pose=Pose(xyz=(x, y, z), rpy=(0.0, 0.0, yaw)),
                 )

@@ -192,7 +192,9 @@ class Cook(Task):
             for name, i in zip(ROLLS, order, strict=True)
         ]
         objects = [
-            _marker("stove", STOVE_XY, 0.10, (0.85, 0.15, 0.1, 1.0)),
+            _marker("stove", STOVE_XY, 0.10, (0.85, 0.15, 0.1, 1.0)).model_copy(
+                update={"color_fixed": True}  # the spec's red stove
+            ),
             SceneObject(
                 name="plate",
                 shape=PLATE,
@@ -583,6 +585,7 @@ def _roll(name: str, x: float, y: float, yaw: float) -> SceneObject:
         name=name,
         shape=BoxShape(size=(ROLL_LENGTH, 2 * ROLL_RADIUS, 2 * ROLL_RADIUS)),
         color=(0.8, 0.55, 0.25, 1.0),
+        color_fixed=True,  # bread looks like bread in randomized scenes too
         mass=ROLL_MASS,
         pose=Pose(xyz=(x, y, TABLE_TOP + ROLL_RADIUS), rpy=tuple(float(v) for v in rpy)),
     )

@@ -185,10 +185,11 @@ class HandoverBlockWithBowls(Task):
         )
         block = block.model_copy(
             update={
+                "color_fixed": True,  # the spec's red cube
                 "pose": Pose(
                     xyz=(*block.pose.xyz[:2], TABLE_TOP + POUR_BASE + CUBE / 2 + 0.0005),
                     rpy=block.pose.rpy,
-                )
+                ),
             }
         )
         target = SceneObject(

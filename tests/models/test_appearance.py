@@ -1,6 +1,8 @@
 """Randomized appearance: drawn from the seed on its own stream, seen and unseen textures never
 shared, recorded in the scene, and visible in the cameras (and only there)."""
 
+import colorsys
+
 import numpy as np
 import pytest
 
@@ -9,10 +11,11 @@ from bicoord_drake.models.appearance import (
     PALETTES,
     TEXTURE_KINDS,
     Texture,
+    recolor_objects,
     sample_appearance,
     texture_image,
 )
-from bicoord_drake.models.scene import Scene
+from bicoord_drake.models.scene import Scene, cube
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import build_station
 from bicoord_drake.tasks import get_task
@@ -66,12 +69,49 @@ def test_texture_images_are_patterned_in_their_palette_and_cached(kind, tmp_path
 def test_randomizing_keeps_the_tasks_scene_and_survives_a_json_round_trip():
     scene = get_task("jigsaw").sample_scene(4)
     randomized = scene.randomized("unseen")
-    assert randomized.objects[: len(scene.objects)] == scene.objects  # clutter comes after
+    for before, after in zip(scene.objects, randomized.objects, strict=False):  # clutter after
+        assert after.model_copy(update={"color": before.color}) == before  # only colours change
     assert randomized.draws == scene.draws
     assert randomized.appearance.split == "unseen"
     assert Scene.model_validate_json(randomized.model_dump_json()) == randomized
     with pytest.raises(ValueError, match="drawn from a seed"):
         Scene(name="x").randomized()
+
+
+def _hue(color) -> float:
+    return colorsys.rgb_to_hsv(*color[:3])[0]
+
+
+def test_recoloring_keeps_equal_colours_equal_distinct_ones_distinct_and_fixed_ones():
+    red, green, white = (0.85, 0.2, 0.2, 1.0), (0.2, 0.6, 0.25, 1.0), (0.95, 0.95, 0.95, 1.0)
+    objects = (
+        cube("a1", 0, 0, color=red),
+        cube("a2", 0.1, 0, color=red),
+        cube("b", 0.2, 0, color=green),
+        cube("grid", 0.3, 0, color=white),
+        cube("stove", 0.4, 0, color=red).model_copy(update={"color_fixed": True}),
+        cube("clutter", 0.5, 0, color=green).model_copy(update={"distractor": True}),
+    )
+    hues = set()
+    for seed in range(12):
+        new = {o.name: o.color for o in recolor_objects(seed, objects)}
+        assert recolor_objects(seed, objects) == recolor_objects(seed, objects)
+        assert new["a1"] == new["a2"] != new["b"]  # a cube and its same-coloured twin
+        gap = (_hue(new["b"]) - _hue(new["a1"])) % 1.0
+        assert gap == pytest.approx((_hue(green) - _hue(red)) % 1.0, abs=0.01)
+        assert new["stove"] == red and new["clutter"] == green
+        h, s, v = colorsys.rgb_to_hsv(*new["grid"][:3])
+        assert s < 0.15 and v > 0.8  # white stays a light grey
+        hues.add(round(_hue(new["a1"]), 2))
+    assert len(hues) > 8  # the seed moves the hue
+
+
+def test_spec_named_colours_survive_randomization():
+    cook = get_task("cook").sample_scene(0)
+    randomized = {o.name: o.color for o in cook.randomized().objects}
+    for name in ("stove", "roll_0", "roll_1"):
+        assert randomized[name] == cook.object(name).color
+    assert randomized["skillet"] != cook.object("skillet").color
 
 
 @pytest.fixture(scope="module")
