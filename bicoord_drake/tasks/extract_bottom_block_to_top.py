@@ -69,6 +69,8 @@ PULL = 0.10
 HELD_UP = 0.01
 #: Control steps between the end of the lifter's lift and the start of the pull.
 PULL_LAG = 2
+#: Most control steps one arm's approach may be delayed so that the two approaches do not meet.
+MAX_DELAY = 60
 #: Control steps over which a gripper lets go of a cube on the stack.
 RELEASE_STEPS = 12
 #: Clearance (m) between the arms while both hold the stack (their fingers pass 2-4 cm apart).
@@ -245,13 +247,43 @@ def _extract(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> Motion:
     # the top cube now rests on the held middle one: left out of the checks (it is above both)
     with _close(ctx), ctx.model.ignoring([top]):
         take = pick(ctx, ext, bottom, lift=0.0, grasps=_grasps(ctx, scene, bottom, ext))
-        wait = max(0, lift_plan.num_steps + PULL_LAG - take.num_steps)
-        held = hold(ctx, ext, wait, label="wait for the lift")
         away = np.array([1.0 if ext == "right" else -1.0, 0.0, 0.0])
         out = pull(ctx, ext, away, PULL, ignore=[PLATFORM])
-    ext_plan = take.then(held, out) if wait else take.then(out)
-    with _close(ctx):
-        return _together(ctx, ext, ext_plan, lift_plan, ignore=[top])
+    return _pull_after_lift(ctx, ext, take, out, lift_plan, ignore=[top])
+
+
+def _pull_after_lift(
+    ctx: SkillContext, ext: str, take: ArmPlan, out: ArmPlan, lift_plan: ArmPlan, ignore
+) -> Motion:
+    """Both arms at once: the extractor's grasp `take`, a wait, its pull `out` starting
+    PULL_LAG steps after the lifter's `lift_plan` ends (at once if its grasp ends later).
+    Where the two approaches would meet, one arm's whole plan starts a few steps later (the
+    least delay that clears them) and the wait is planned anew from the delayed timing."""
+    reasons = []
+    for delay in range(0, MAX_DELAY + 1, 3):
+        for late in ("ext", "lifter") if delay else ("ext",):
+            d_ext, d_lift = (delay, 0) if late == "ext" else (0, delay)
+            first = take.delayed(d_ext)
+            wait = max(0, lift_plan.num_steps + d_lift + PULL_LAG - first.num_steps)
+            plan = first.then(_still(first, wait), out) if wait else first.then(out)
+            try:
+                with _close(ctx):
+                    return _together(ctx, ext, plan, lift_plan.delayed(d_lift), ignore=ignore)
+            except PlanningError as err:
+                reasons.append(err.reason)
+    raise PlanningError(
+        "arm_conflict", f"the grasps of the stack meet at every delay ({reasons[-1]})"
+    )
+
+
+def _still(plan: ArmPlan, steps: int) -> ArmPlan:
+    """Hold the last sample of `plan` for `steps` control steps."""
+    return ArmPlan(
+        plan.side,
+        np.repeat(plan.q[-1:], steps + 1, 0),
+        np.repeat(plan.opening[-1:], steps + 1),
+        label="wait for the lift",
+    )
 
 
 def _lower_and_raise(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> Motion:
@@ -311,11 +343,13 @@ def _vertical(ctx: SkillContext, side: str, dz: float, *, ignore, label: str) ->
 def _together(ctx: SkillContext, ext: str, ext_plan: ArmPlan, lifter_plan: ArmPlan, ignore):
     """Both plans at their own pace, no delay added (the timing between them is planned)."""
     plans = {ext: ext_plan, ("left" if ext == "right" else "right"): lifter_plan}
+    ctx.model.set_padding(ctx.clearance, 0.0)
     return merge(ctx, plans["left"], plans["right"], stretch=False, max_delay=0, ignore=ignore)
 
 
 class _close:
-    """Within the block the arms may come CLOSE_CLEARANCE apart (both hands on one stack)."""
+    """Within the block the arms may come CLOSE_CLEARANCE apart (both hands on one stack);
+    the checker's padding is set to that (no environment margin) for the merged motions."""
 
     def __init__(self, ctx: SkillContext) -> None:
         self.ctx = ctx
