@@ -18,6 +18,7 @@ from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
     SkillContext,
+    carry_above,
     first_step_in_zone,
     grip,
     hold,
@@ -308,23 +309,25 @@ def _lower_and_raise(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> 
     lifter_plan.events.append((down.num_steps + opened.num_steps - 2, "detach", middle))
     # the extractor: up out beside the platform, then over the stack
     goal = stack_target(lowered, _shape(scene), _shape(scene))
-    ext_plan = carry_over(ctx, ext, goal, ABOVE_STACK)
+    ext_plan = _carry_over(ctx, ext, goal, ABOVE_STACK)
     xy = lowered.translation()[:2]
     into = first_step_in_zone(ctx, ext_plan, xy, edge + 0.02)
     wait = max(0, down.num_steps + 1 - into)
-    return _together(ctx, ext, ext_plan.delayed(wait), lifter_plan, ignore=[top])
+    # where the arms would still meet, the extractor waits longer (never less)
+    for extra in range(0, MAX_DELAY + 1, 3):
+        try:
+            return _together(ctx, ext, ext_plan.delayed(wait + extra), lifter_plan, ignore=[top])
+        except PlanningError as err:
+            reason = err.reason
+    raise PlanningError("arm_conflict", f"lowering and raising meet at every delay ({reason})")
 
 
-def carry_over(ctx: SkillContext, side: str, goal: RigidTransform, height: float) -> ArmPlan:
-    """Straight up until the held cube's bottom is `height` above the goal's bottom, then
-    across to straight above the goal (same orientation)."""
-    from bicoord_drake.planning.skills import carry_above
-
-    X = ctx.model.tcp_pose(ctx.q, side)
+def _carry_over(ctx: SkillContext, side: str, goal: RigidTransform, height: float) -> ArmPlan:
+    """Straight up beside the platform until the held cube's bottom is `height` above the
+    goal's, then across to straight above the goal."""
     X_WO = ctx.model.held_pose(side, ctx.q)
     rise = goal.translation()[2] + height - X_WO.translation()[2]
     up = _vertical(ctx, side, rise, ignore=[PLATFORM], label="raise") if rise > 0.005 else None
-    del X
     over = carry_above(ctx, side, goal, height=height)
     return up.then(over) if up is not None else over
 
