@@ -87,13 +87,18 @@ class ExtractBottomBlockToTop(Task):
     """Pull the bottom cube out from under the stack and put it on top.
 
     Description: a static platform (8x8x6 cm) carries a stack of three equal cubes. The lifter
-    arm side-grasps the middle cube from the front (jaws closing along x) and lifts it 2 cm, the
-    top cube riding on it; at the same time the extractor arm side-grasps the bottom cube from
-    its own side (jaws closing along y, low over the platform top) and, the moment the lift is
-    complete, pulls it 10 cm straight out toward its side, under the lifter's fingers. Then the
-    lifter sets the middle cube (with the top one) back on the platform while the extractor
-    raises the pulled cube and carries it over the stack; the lifter lets go and retreats while
-    the extractor sets the cube on top.
+    arm side-grasps the middle cube from the front (approach +y, jaws closing along x) and lifts
+    it 2 cm, the top cube riding on it; at the same time the extractor arm side-grasps the
+    bottom cube from its own side (approach along x toward the centre line, jaws closing along
+    y, TCP low over the platform top) and pulls it 10 cm straight out toward its side (skill
+    ``pull``), under the lifter's fingers. The pull is timed from both plans: it starts 2
+    control steps after the lifter's lift ends, or as soon as the extractor's own grasp is
+    closed if that is later; where the two approaches would meet, one arm's whole plan starts
+    a few steps later and the wait is recomputed. Then the lifter lowers the middle cube (with
+    the top one) onto the platform, lets go slowly and backs off while the extractor raises the
+    pulled cube beside the platform and carries it over the stack - entering the space above
+    the stack only once the lowering is done; finally the lifter retreats home while the
+    extractor sets the cube on top and lets go.
 
     Randomization: the platform's centre x in [-0.05, 0], y in [-0.05, 0.10] (the reference's
     layout); the cube edge in [4, 6] cm (all three equal); which arm extracts (the other lifts);
