@@ -640,3 +640,55 @@ def fraction_true(preds: Sequence[Callable]) -> Predicate:
         f"fraction_true([{', '.join(_name(p) for p in preds)}])",
         preds,
     )
+
+
+# --------------------------------------------------------------------------- footprints
+def _hull_2d(points: np.ndarray) -> np.ndarray:
+    """Counter-clockwise convex hull of (N, 2) points (monotone chain)."""
+    pts = sorted({(float(x), float(y)) for x, y in points})
+    if len(pts) < 3:
+        return np.array(pts)
+
+    def half(seq):
+        out: list[tuple[float, float]] = []
+        for p in seq:
+            while len(out) >= 2:
+                (ax, ay), (bx, by) = out[-2], out[-1]
+                if (bx - ax) * (p[1] - ay) - (by - ay) * (p[0] - ax) > 1e-12:
+                    break
+                out.pop()
+            out.append(p)
+        return out
+
+    lower, upper = half(pts), half(pts[::-1])
+    return np.array(lower[:-1] + upper[:-1])
+
+
+def footprint(state: WorldState, name: str) -> np.ndarray:
+    """The object's footprint on the xy plane: the convex hull of its box corners seen from
+    above, counter-clockwise (K, 2)."""
+    return _hull_2d(world_corners(state, name)[:, :2])
+
+
+def footprint_gap(a: np.ndarray, b: np.ndarray) -> float:
+    """Separation (m) of two convex polygons along the best separating edge normal: positive
+    when they are apart by that much, zero or negative when they overlap."""
+    best = -math.inf
+    for poly in (a, b):
+        for p, q in zip(poly, np.roll(poly, -1, axis=0), strict=True):
+            edge = q - p
+            n = np.array([edge[1], -edge[0]]) / max(float(np.linalg.norm(edge)), 1e-12)
+            pa, pb = a @ n, b @ n
+            best = max(best, float(pb.min() - pa.max()), float(pa.min() - pb.max()))
+    return best
+
+
+def clear_of(obj: str, support: str, margin: float = 0.0) -> Predicate:
+    """No part of `obj` is over `support`: their footprints seen from above (box corners,
+    any orientation) are at least `margin` apart - e.g. a block pulled out from a platform.
+    A block still partly over the platform, or lying on it, is not clear of it."""
+
+    def check(s: WorldState) -> bool:
+        return footprint_gap(footprint(s, obj), footprint(s, support)) >= margin
+
+    return Predicate(check, f"clear_of({obj!r}, {support!r}, margin={margin})")

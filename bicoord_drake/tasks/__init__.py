@@ -16,6 +16,7 @@ TASK_MODULES: tuple[str, ...] = (
     "clean_table",
     "cook",
     "exchange_mics",
+    "extract_bottom_block_to_top",
     "handover_block_with_bowls",
     "jigsaw",
     "place_plate_and_cup",

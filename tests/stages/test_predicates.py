@@ -5,7 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.models.geometry import Pose
+from bicoord_drake.models.objects import BoxShape, SceneObject
+from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.stages import predicates as P
 from bicoord_drake.stages.stage import quat_to_matrix
 from tests.stages.helpers import pose, quat_about, scene, state
@@ -295,3 +297,50 @@ def test_spaced_measures_the_xy_distance_of_the_centres():
     assert P.spaced("a", "b", 0.25, tol=0.01)(state(sc, poses={"b": lifted}))
     closer = pose(0.05, 0.0, TABLE_TOP + 0.025)
     assert not P.spaced("a", "b", 0.25, tol=0.04)(state(sc, poses={"b": closer}))
+
+
+def _platform_scene():
+    """A fixed 8 x 8 x 6 cm platform at the origin and a 5 cm cube on it."""
+    platform = SceneObject(
+        name="platform",
+        shape=BoxShape(size=(0.08, 0.08, 0.06)),
+        fixed=True,
+        pose=Pose(xyz=(0.0, 0.0, TABLE_TOP + 0.03)),
+    )
+    return Scene(name="platform", seed=0, objects=(platform, cube("block", 0.0, 0.0, size=0.05)))
+
+
+def test_clear_of_needs_the_whole_footprint_off_the_support():
+    sc = _platform_scene()
+    clear = P.clear_of("block", "platform")
+    z = TABLE_TOP + 0.06 + 0.025
+    # on the platform (its start): not clear
+    assert not clear(state(sc, poses={"block": pose(0.0, 0.0, z)}))
+    # pulled out 10 cm along x, held at the same height: clear
+    assert clear(state(sc, poses={"block": pose(0.10, 0.0, z)}))
+    # pulled 6 cm: its inner 1.5 cm still over the platform
+    assert not clear(state(sc, poses={"block": pose(0.06, 0.0, z)}))
+    # exactly edge to edge (4 + 2.5 cm): clear, but not with a 1 cm margin
+    assert clear(state(sc, poses={"block": pose(0.065, 0.0, z)}))
+    assert not P.clear_of("block", "platform", margin=0.01)(
+        state(sc, poses={"block": pose(0.065, 0.0, z)})
+    )
+    # off along the diagonal, turned 45 degrees: its corner reaches back over the platform
+    turned = quat_about("z", math.pi / 4)
+    assert not clear(state(sc, poses={"block": pose(0.055, 0.055, z, turned)}))
+    assert clear(state(sc, poses={"block": pose(0.075, 0.075, z, turned)}))
+    # toppled over the edge (tilted 45 degrees about y), centre 5 cm out: a corner over it
+    tipped = quat_about("y", math.pi / 4)
+    assert not clear(state(sc, poses={"block": pose(0.05, 0.0, z, tipped)}))
+    # under the platform's footprint at any height (held above it, or below it): not clear
+    assert not clear(state(sc, poses={"block": pose(0.0, 0.02, z + 0.2)}))
+
+
+def test_footprint_gap_measures_the_separation_of_convex_polygons():
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    assert P.footprint_gap(square, square + [3.0, 0.0]) == pytest.approx(2.0)
+    assert P.footprint_gap(square, square + [0.5, 0.5]) < 0
+    diamond = np.array([[0.0, -1.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]]) + [2.5, 2.5]
+    # the diamond's nearest vertex (2.5, 1.5) lies beside the square's corner: apart along a
+    # diagonal normal, which only the diamond's edges provide
+    assert P.footprint_gap(square, diamond) == pytest.approx(np.sqrt(2))

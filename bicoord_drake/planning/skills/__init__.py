@@ -21,6 +21,8 @@ module                    skills
                           :func:`stabilize`, :func:`release`
 :mod:`.tracking`          :func:`track` (a TCP path at every sample), :func:`push`
 :mod:`.pour`              :func:`pour` (tilt a held container about its rim and back)
+:mod:`.sliding`           :func:`pull` (drag a held object along a straight line, e.g. a
+                          block out from under a stack)
 :mod:`.handover`          :func:`handover` (mid-air, both arms arrive at once; options for the
                           orientations at the meeting and the receiver's grasps),
                           :func:`crossing_grasps`, :func:`meet_motion`
@@ -84,6 +86,7 @@ from bicoord_drake.planning.skills.pick_place import (
 )
 from bicoord_drake.planning.skills.pour import pour
 from bicoord_drake.planning.skills.shapes import half_extent
+from bicoord_drake.planning.skills.sliding import pull
 from bicoord_drake.planning.skills.toss import least_spin_velocity, toss
 from bicoord_drake.planning.skills.tracking import push, track
 from bicoord_drake.planning.skills.turns import arrival_delay, arrive_as_leaves, first_step_in_zone
@@ -118,6 +121,7 @@ __all__ = [
     "pick_together",
     "place",
     "pour",
+    "pull",
     "push",
     "release",
     "release_together",

@@ -1,0 +1,416 @@
+"""extract_bottom_block_to_top: pull the bottom cube out of a three-cube stack while the other
+arm holds the two above it up, then put the pulled cube on top."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+from pydrake.all import RigidTransform
+
+from bicoord_drake.models.geometry import Pose
+from bicoord_drake.models.objects import BoxShape, SceneObject
+from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.grasps import Grasp, GraspParams, box_grasps, stack_target
+from bicoord_drake.planning.model import PlanningModel
+from bicoord_drake.planning.skills import (
+    ArmPlan,
+    Motion,
+    SkillContext,
+    carry_above,
+    first_step_in_zone,
+    grip,
+    hold,
+    merge,
+    move_tcp,
+    pick,
+    place,
+    pull,
+    retreat,
+    track,
+)
+from bicoord_drake.stages import Stage
+from bicoord_drake.stages.predicates import (
+    all_of,
+    at_rest,
+    clear_of,
+    hands_free,
+    held_by,
+    lifted,
+    on_top_of,
+    settled,
+    stacked,
+    untouched,
+)
+from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.registry import register_task
+
+PLATFORM = "platform"
+BLOCKS = ("bottom_cube", "middle_cube", "top_cube")  # as stacked at the start
+PLATFORM_SIZE = (0.08, 0.08, 0.06)
+PLATFORM_TOP = TABLE_TOP + PLATFORM_SIZE[2]
+#: Where the platform's centre lies (the reference's ranges).
+PLATFORM_X = (-0.05, 0.0)
+PLATFORM_Y = (-0.05, 0.10)
+EDGE = (0.04, 0.06)
+DENSITY = 600.0  # kg/m^3 (painted wood): 0.04-0.13 kg
+COLORS = {
+    "red": (0.85, 0.2, 0.2, 1.0),
+    "green": (0.2, 0.6, 0.25, 1.0),
+    "blue": (0.2, 0.35, 0.85, 1.0),
+    "yellow": (0.9, 0.75, 0.15, 1.0),
+    "purple": (0.6, 0.3, 0.75, 1.0),
+    "orange": (0.95, 0.5, 0.1, 1.0),
+}
+#: How far (m) the lifter raises the middle cube, and the extractor pulls the bottom one out.
+LIFT = 0.02
+PULL = 0.10
+#: The middle cube counts as held up from this rise (m) above where it started.
+HELD_UP = 0.01
+#: Control steps between the end of the lifter's lift and the start of the pull.
+PULL_LAG = 2
+#: Most control steps one arm's approach may be delayed so that the two approaches do not meet.
+MAX_DELAY = 60
+#: Control steps over which a gripper lets go of a cube on the stack.
+RELEASE_STEPS = 12
+#: Clearance (m) between the arms while both hold the stack (their fingers pass 2-4 cm apart).
+CLOSE_CLEARANCE = 0.01
+#: Height (m) of the carried cube's bottom above the two-cube stack before it is set on top.
+ABOVE_STACK = 0.05
+#: Control steps both arms hold still at the end: the stack must be seen at rest for 0.3 s.
+SETTLE_STEPS = 8
+
+
+@register_task
+class ExtractBottomBlockToTop(Task):
+    """Pull the bottom cube out from under the stack and put it on top.
+
+    Description: a static platform (8x8x6 cm) carries a stack of three equal cubes. The lifter
+    arm side-grasps the middle cube from the front (approach +y, jaws closing along x) and lifts
+    it 2 cm, the top cube riding on it; at the same time the extractor arm side-grasps the
+    bottom cube from its own side (approach along x toward the centre line, jaws closing along
+    y, TCP low over the platform top) and pulls it 10 cm straight out toward its side (skill
+    ``pull``), under the lifter's fingers. The pull is timed from both plans: it starts 2
+    control steps after the lifter's lift ends, or as soon as the extractor's own grasp is
+    closed if that is later; where the two approaches would meet, one arm's whole plan starts
+    a few steps later and the wait is recomputed. Then the lifter lowers the middle cube (with
+    the top one) onto the platform, lets go slowly and backs off while the extractor raises the
+    pulled cube beside the platform and carries it over the stack - entering the space above
+    the stack only once the lowering is done; finally the lifter retreats home while the
+    extractor sets the cube on top and lets go.
+
+    Randomization: the platform's centre x in [-0.05, 0], y in [-0.05, 0.10] (the reference's
+    layout); the cube edge in [4, 6] cm (all three equal); which arm extracts (the other lifts);
+    three distinct colours.
+
+    Stages: (1) the bottom cube held by the extractor clear of the platform (no part of it over
+    the platform's top) while the middle cube is held up by the lifter at least 1 cm above where
+    it started with the top cube resting on it (transient, 0); (2) a two-cube stack on the
+    platform - the middle cube on the platform, the top cube on it, both untouched and at rest
+    (0.5); (3) the old bottom cube on top of that stack, released and settled (0.5).
+
+    Success: platform, middle, top and old bottom cube stacked in that order (each centre within
+    2 cm in xy of the one below, bottom within 1 cm of its top, every cube lying on a face),
+    both grippers open, no finger touching any cube, every cube at rest for 0.3 s.
+    """
+
+    name = "extract_bottom_block_to_top"
+    step_limit = 400
+    instructions_seen = (
+        "Pull the bottom block out of the stack and put it on top.",
+        "Lift the upper blocks a little, slide out the bottom one and stack it on top.",
+        "Take the lowest cube out from under the tower and place it at the top.",
+        "Hold up the top two cubes, pull out the bottom cube, then put it on the stack.",
+        "Move the bottom block of the tower to the top without knocking it over.",
+        "Extract the bottom cube while the other hand lifts the rest, then stack it on top.",
+        "Use both hands to pull out the block at the bottom and set it on top of the others.",
+    )
+    instructions_unseen = (
+        "Swap the bottom cube to the top of the pile using both arms.",
+        "One arm raises the upper cubes while the other slides the bottom one out; put it on top.",
+        "Rebuild the tower so the cube that was at the bottom ends up on top.",
+        "Slide the lowest block out from beneath the others and stack it on the top.",
+    )
+
+    # ---------------------------------------------------------------- scene
+    def sample_scene(self, seed: int) -> Scene:
+        rng = np.random.default_rng(seed)
+        x, y = float(rng.uniform(*PLATFORM_X)), float(rng.uniform(*PLATFORM_Y))
+        edge = float(rng.uniform(*EDGE))
+        extractor = str(rng.choice(["left", "right"]))
+        color_names = [str(c) for c in rng.choice(sorted(COLORS), size=3, replace=False)]
+        objects = [_platform(x, y)]
+        for k, (name, color) in enumerate(zip(BLOCKS, color_names, strict=True)):
+            block = cube(name, x, y, size=edge, color=COLORS[color], mass=DENSITY * edge**3)
+            z = PLATFORM_TOP + edge * (k + 0.5)
+            objects.append(block.model_copy(update={"pose": Pose(xyz=(x, y, z))}))
+        return Scene(
+            name=self.name,
+            seed=seed,
+            objects=tuple(objects),
+            draws={
+                "platform_xy": [x, y],
+                "edge": edge,
+                "extractor": extractor,
+                "colors": color_names,
+            },
+        )
+
+    def object_count(self, scene: Scene) -> int:
+        return 4  # three cubes and the platform
+
+    # ---------------------------------------------------------------- stages
+    def stages(self, scene: Scene) -> list[Stage]:
+        bottom, middle, top = BLOCKS
+        ext, lifter = _roles(scene)
+        arms = {ext: "pull the bottom cube out 10 cm", lifter: "lift the middle cube 2 cm"}
+        lower = {ext: "raise the extracted cube", lifter: "set the middle cube on the platform"}
+        last = {ext: "place the extracted cube on top", lifter: "retreat"}
+        return [
+            Stage(
+                "extract the bottom cube",
+                arms["left"],
+                arms["right"],
+                0.0,
+                all_of(
+                    clear_of(bottom, PLATFORM),
+                    held_by(bottom, ext),
+                    held_by(middle, lifter),
+                    lifted(middle, HELD_UP),
+                    on_top_of(top, middle),
+                ),
+                "transient",
+            ),
+            Stage(
+                "lower the rest",
+                lower["left"],
+                lower["right"],
+                0.5,
+                all_of(
+                    stacked([PLATFORM, middle, top]),
+                    untouched(middle),
+                    untouched(top),
+                    at_rest(middle),
+                    at_rest(top),
+                ),
+                "persistent",
+            ),
+            Stage(
+                "put it on top",
+                last["left"],
+                last["right"],
+                0.5,
+                all_of(
+                    stacked([PLATFORM, middle, top, bottom]), hands_free(BLOCKS), settled(BLOCKS)
+                ),
+                "persistent",
+            ),
+        ]
+
+    # ---------------------------------------------------------------- expert
+    def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
+        bottom, middle, top = BLOCKS
+        ext, lifter = _roles(scene)
+        ctx = SkillContext(PlanningModel(scene))
+
+        def run(motion: Motion) -> Iterator[np.ndarray]:
+            yield from motion.actions()
+            poses = view.object_transforms()
+            ctx.sync(ctx.q, object_poses=poses)
+            ctx.refresh_grasps(poses)
+
+        # ---- stage 1: lift the middle cube, pull the bottom one out as soon as it is up
+        yield from run(_extract(ctx, scene, ext, lifter))
+        # ---- stage 2: lower the rest onto the platform; raise the pulled cube over it
+        with _close(ctx):
+            lowering = _lower_and_raise(ctx, scene, ext, lifter)
+        yield from run(lowering)
+        # ---- stage 3: the lifter retreats, the extractor sets the cube on top
+        goal = stack_target(ctx.model.object_pose(top), _shape(scene), _shape(scene))
+        plans = {
+            lifter: retreat(ctx, lifter),
+            ext: place(ctx, ext, goal, approach_height=ABOVE_STACK, release_steps=RELEASE_STEPS),
+        }
+        yield from run(merge(ctx, plans["left"], plans["right"]))
+        final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
+        yield from final.actions()
+
+
+# -------------------------------------------------------------------- expert steps
+def _extract(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> Motion:
+    """Both arms grasp at once; the lifter lifts the middle cube LIFT; the extractor's pull
+    starts PULL_LAG steps after the lift is complete (or when its own grasp is, if later)."""
+    bottom, middle, top = BLOCKS
+    X_top = ctx.model.object_pose(top)
+    grasp = pick(ctx, lifter, middle, lift=0.0, grasps=_grasps(ctx, scene, middle, lifter))
+    up = _vertical(ctx, lifter, LIFT, ignore=[top, bottom], label="lift the middle cube")
+    # the top cube rides on the middle one
+    ctx.model.set_object_pose(
+        top, RigidTransform(X_top.rotation(), X_top.translation() + [0, 0, LIFT])
+    )
+    lift_plan = grasp.then(up)
+    # the top cube now rests on the held middle one: left out of the checks (it is above both)
+    with _close(ctx), ctx.model.ignoring([top]):
+        take = pick(ctx, ext, bottom, lift=0.0, grasps=_grasps(ctx, scene, bottom, ext))
+        away = np.array([1.0 if ext == "right" else -1.0, 0.0, 0.0])
+        out = pull(ctx, ext, away, PULL, ignore=[PLATFORM])
+    return _pull_after_lift(ctx, ext, take, out, lift_plan, ignore=[top])
+
+
+def _pull_after_lift(
+    ctx: SkillContext, ext: str, take: ArmPlan, out: ArmPlan, lift_plan: ArmPlan, ignore
+) -> Motion:
+    """Both arms at once: the extractor's grasp `take`, a wait, its pull `out` starting
+    PULL_LAG steps after the lifter's `lift_plan` ends (at once if its grasp ends later).
+    Where the two approaches would meet, one arm's whole plan starts a few steps later (the
+    least delay that clears them) and the wait is planned anew from the delayed timing."""
+    reasons = []
+    for delay in range(0, MAX_DELAY + 1, 3):
+        for late in ("ext", "lifter") if delay else ("ext",):
+            d_ext, d_lift = (delay, 0) if late == "ext" else (0, delay)
+            first = take.delayed(d_ext)
+            wait = max(0, lift_plan.num_steps + d_lift + PULL_LAG - first.num_steps)
+            plan = first.then(_still(first, wait), out) if wait else first.then(out)
+            try:
+                with _close(ctx):
+                    return _together(ctx, ext, plan, lift_plan.delayed(d_lift), ignore=ignore)
+            except PlanningError as err:
+                reasons.append(err.reason)
+    raise PlanningError(
+        "arm_conflict", f"the grasps of the stack meet at every delay ({reasons[-1]})"
+    )
+
+
+def _still(plan: ArmPlan, steps: int) -> ArmPlan:
+    """Hold the last sample of `plan` for `steps` control steps."""
+    return ArmPlan(
+        plan.side,
+        np.repeat(plan.q[-1:], steps + 1, 0),
+        np.repeat(plan.opening[-1:], steps + 1),
+        label="wait for the lift",
+    )
+
+
+def _lower_and_raise(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> Motion:
+    """The lifter lowers the middle cube (the top riding on it) onto the platform, lets go
+    slowly and backs off; the extractor raises the pulled cube and carries it over the stack,
+    entering the space above the stack only once the lowering is done."""
+    bottom, middle, top = BLOCKS
+    edge = scene.draws["edge"]
+    X_mid = ctx.model.object_pose(middle)
+    X_top = ctx.model.object_pose(top)
+    drop = X_mid.translation()[2] - (PLATFORM_TOP + edge / 2 + 0.002)
+    down = _vertical(ctx, lifter, -drop, ignore=[top, PLATFORM], label="lower the stack")
+    lowered = RigidTransform(X_top.rotation(), X_top.translation() - [0, 0, drop])
+    ctx.model.set_object_pose(top, lowered)
+    opened = grip(ctx, lifter, 1.0, label="let go", ramp_steps=RELEASE_STEPS)
+    X_WO = ctx.model.held_pose(lifter, ctx.q)
+    ctx.model.detach(lifter, X_WO=X_WO)
+    X = ctx.model.tcp_pose(ctx.q, lifter)
+    X_back = RigidTransform(X.rotation(), X.translation() - 0.06 * X.rotation().col(0))
+    back = move_tcp(ctx, lifter, X_back, label="back off", ignore=[middle, top], straight=True)
+    lifter_plan = down.then(opened, back)
+    lifter_plan.events.append((down.num_steps + opened.num_steps - 2, "detach", middle))
+    # the extractor: up out beside the platform, then over the stack
+    goal = stack_target(lowered, _shape(scene), _shape(scene))
+    ext_plan = _carry_over(ctx, ext, goal, ABOVE_STACK)
+    xy = lowered.translation()[:2]
+    into = first_step_in_zone(ctx, ext_plan, xy, edge + 0.02)
+    wait = max(0, down.num_steps + 1 - into)
+    # where the arms would still meet, the extractor waits longer (never less)
+    for extra in range(0, MAX_DELAY + 1, 3):
+        try:
+            return _together(ctx, ext, ext_plan.delayed(wait + extra), lifter_plan, ignore=[top])
+        except PlanningError as err:
+            reason = err.reason
+    raise PlanningError("arm_conflict", f"lowering and raising meet at every delay ({reason})")
+
+
+def _carry_over(ctx: SkillContext, side: str, goal: RigidTransform, height: float) -> ArmPlan:
+    """Straight up beside the platform until the held cube's bottom is `height` above the
+    goal's, then across to straight above the goal."""
+    X_WO = ctx.model.held_pose(side, ctx.q)
+    rise = goal.translation()[2] + height - X_WO.translation()[2]
+    up = _vertical(ctx, side, rise, ignore=[PLATFORM], label="raise") if rise > 0.005 else None
+    over = carry_above(ctx, side, goal, height=height)
+    return up.then(over) if up is not None else over
+
+
+def _vertical(ctx: SkillContext, side: str, dz: float, *, ignore, label: str) -> ArmPlan:
+    """The TCP straight up (dz > 0) or down by |dz|, orientation kept, exactly on the line."""
+    X = ctx.model.tcp_pose(ctx.q, side)
+    p0 = X.translation()
+
+    def pose_at(s: float) -> RigidTransform:
+        return RigidTransform(X.rotation(), p0 + [0.0, 0.0, s * dz])
+
+    return track(ctx, side, pose_at, abs(dz), 0.0, label=label, ignore=ignore)
+
+
+def _together(ctx: SkillContext, ext: str, ext_plan: ArmPlan, lifter_plan: ArmPlan, ignore):
+    """Both plans at their own pace, no delay added (the timing between them is planned)."""
+    plans = {ext: ext_plan, ("left" if ext == "right" else "right"): lifter_plan}
+    ctx.model.set_padding(ctx.clearance, 0.0)
+    return merge(ctx, plans["left"], plans["right"], stretch=False, max_delay=0, ignore=ignore)
+
+
+class _close:
+    """Within the block the arms may come CLOSE_CLEARANCE apart (both hands on one stack);
+    the checker's padding is set to that (no environment margin) for the merged motions."""
+
+    def __init__(self, ctx: SkillContext) -> None:
+        self.ctx = ctx
+
+    def __enter__(self) -> None:
+        self.saved = self.ctx.clearance
+        self.ctx.clearance = CLOSE_CLEARANCE
+        self.ctx.model.set_padding(CLOSE_CLEARANCE, 0.0)
+
+    def __exit__(self, *exc) -> None:
+        self.ctx.clearance = self.saved
+
+
+def _grasps(ctx: SkillContext, scene: Scene, name: str, side: str) -> list[Grasp]:
+    """Side grasps of cube `name` at its centre height: the lifter's from the front (approach
+    +y, jaws along x), the extractor's from its own side (approach toward the centre line,
+    jaws along y), best first."""
+    ext, _ = _roles(scene)
+    if side == ext:
+        want = np.array([-1.0 if side == "right" else 1.0, 0.0, 0.0])
+    else:
+        want = np.array([0.0, 1.0, 0.0])
+    params = GraspParams(support_z=PLATFORM_TOP, side_clearance=0.0)
+    X_WO = ctx.model.object_pose(name)
+    grasps = box_grasps(
+        X_WO,
+        scene.object(name).shape,
+        ctx.model.embodiment.arm.gripper,
+        base=np.array(ctx.model.embodiment.base_pose(side).xyz),
+        kinds=("side",),
+        params=params,
+    )
+    chosen = [g for g in grasps if g.approach @ want > 0.99]
+    if not chosen:
+        raise PlanningError("no_grasp", f"no side grasp of {name} for the {side} arm")
+    return chosen
+
+
+def _roles(scene: Scene) -> tuple[str, str]:
+    """(extractor, lifter)."""
+    ext = scene.draws["extractor"]
+    return ext, ("left" if ext == "right" else "right")
+
+
+def _shape(scene: Scene) -> BoxShape:
+    return scene.object(BLOCKS[0]).shape
+
+
+def _platform(x: float, y: float) -> SceneObject:
+    return SceneObject(
+        name=PLATFORM,
+        shape=BoxShape(size=PLATFORM_SIZE),
+        color=(0.62, 0.5, 0.38, 1.0),
+        fixed=True,
+        pose=Pose(xyz=(x, y, TABLE_TOP + PLATFORM_SIZE[2] / 2)),
+    )
