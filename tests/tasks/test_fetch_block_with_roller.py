@@ -184,13 +184,11 @@ def test_the_roller_is_grasped_behind_its_middle(scene):
         assert g.approach[2] < -0.99  # from above
 
 
-def test_roller_tool_puts_the_tip_on_the_point_level_along_minus_x(scene):
+def test_roller_tool_puts_the_tip_on_the_point_level_along_minus_x():
     from pydrake.all import RigidTransform, RollPitchYaw
 
     X_WO = RigidTransform(RollPitchYaw(0.3, math.pi / 2, 0.2), [0.2, -0.1, 0.9])
     X_WT = RigidTransform(RollPitchYaw(math.pi, 0.0, 0.1), [0.25, -0.1, 0.91])
-    from bicoord_drake.planning.grasps import RotationMatrix  # noqa: F401  (Drake is loaded)
-
     axis = X_WO.rotation().col(2)
     tool = fb.RollerTool(
         fb._turned(X_WO.rotation(), -axis, np.array([-1.0, 0.0, 0.0])),
