@@ -78,16 +78,18 @@ XY_TOL = 0.02
 #: (toward +x: the front part reaches through the tunnel, the hand stays outside), its pads
 #: this far above the roller's bottom at least; the roller is lifted this high after the grasp.
 SPEED = 0.7
-GRIP_BACK = 0.06
+GRIP_BACK = 0.09
 TIP_CLEARANCE = 0.008
 LIFT = 0.08
 #: The push: the roller's axis this high above the table (below the cube's middle: the
 #: table's friction at the cube's bottom does not tip it), its tip from START_X (outside the
 #: tunnel's +x mouth) to END_X (the cube's centre then 2.5 cm further, out of the exit),
 #: lowered onto the line from APPROACH above; slower than the other moves.
-PUSH_Z = 0.022
+PUSH_Z = 0.024
 START_X, END_X = 0.035, -0.168
 APPROACH = 0.04
+#: Before drawing the roller back, its tip is raised this much (m) off the pushing line.
+RAISE = 0.008
 PUSH_SPEED = 0.35
 #: The left hand waits above the exit, this high over the table, until the cube comes out.
 WAIT_X, WAIT_Z = -0.21, 0.16
@@ -247,7 +249,7 @@ class FetchBlockWithRoller(Task):
         yield from run(merge(ctx, None, push_through(ctx, tool, start, end), ignore=[CUBE]))
         # ---- stage 2: right draws the roller back out and lays it down, left picks the cube
         # and sets it on the plate (the arm leaving is planned first)
-        right = withdraw(ctx, tool, end, start).then(lay_down(ctx, tool), retreat(ctx, "right"))
+        right = withdraw(ctx, START_X).then(lay_down(ctx, tool), retreat(ctx, "right"))
         top = TABLE_TOP + SHELF_DIMS.top + CUBE_EDGE / 2
         goal = RigidTransform([SHELF_XY[0], SHELF_XY[1], top + 0.001])
         left = pick(ctx, "left", CUBE, grasps=cube_grasps(ctx)).then(
@@ -377,13 +379,41 @@ def push_through(
     return plan
 
 
-def withdraw(ctx: SkillContext, tool: RollerTool, end: np.ndarray, start: np.ndarray) -> ArmPlan:
-    """Draw the roller straight back out of the tunnel, then lift it clear."""
-    dist = float(np.linalg.norm(end - start))
-    back = track(ctx, "right", tool.line(end, start), dist, 0.0, label="draw back", ignore=[CUBE])
-    up = start + np.array([0.0, 0.0, APPROACH])
-    rise = track(ctx, "right", tool.line(start, up), APPROACH, 0.0, label="roller up")
-    return back.then(rise)
+def withdraw(ctx: SkillContext, start_x: float) -> ArmPlan:
+    """Draw the roller straight back out of the tunnel to its tip at `start_x`, then lift
+    it clear. The grasp is re-measured first (the roller turns a few degrees in the hand
+    while pushing): the roller is levelled again and raised by RAISE, then drawn back."""
+    X_now = ctx.model.tcp_pose(ctx.q, "right")
+    tool = RollerTool.from_grasp(ctx)
+    tip = ctx.model.held_pose("right", ctx.q) @ tool.p_OQ + np.array([0.0, 0.0, RAISE])
+    level = track(
+        ctx,
+        "right",
+        _between(X_now, tool.tcp_at(tip)),
+        RAISE,
+        0.1,
+        label="level the roller",
+        ignore=[CUBE],
+    )
+    out = np.array([start_x, tip[1], tip[2]])
+    dist = float(np.linalg.norm(out - tip))
+    back = track(ctx, "right", tool.line(tip, out), dist, 0.0, label="draw back", ignore=[CUBE])
+    up = out + np.array([0.0, 0.0, APPROACH])
+    rise = track(ctx, "right", tool.line(out, up), APPROACH, 0.0, label="roller up")
+    return level.then(back, rise)
+
+
+def _between(X_a: RigidTransform, X_b: RigidTransform) -> Callable[[float], RigidTransform]:
+    """Poses from `X_a` to `X_b`: the position along the line, the rotation about one axis."""
+    R_ab = X_a.rotation().inverse() @ X_b.rotation()
+    turn = AngleAxis(R_ab.ToQuaternion())
+    p_a, p_b = X_a.translation(), X_b.translation()
+
+    def pose_at(s: float) -> RigidTransform:
+        R = X_a.rotation() @ RotationMatrix(AngleAxis(s * turn.angle(), turn.axis()))
+        return RigidTransform(R, p_a + s * (p_b - p_a))
+
+    return pose_at
 
 
 def lay_down(ctx: SkillContext, tool: RollerTool) -> ArmPlan:
