@@ -12,8 +12,8 @@ from dataclasses import dataclass
 from bicoord_drake.models.geometry import Pose, Primitive, Rgba
 from bicoord_drake.models.objects import CompoundShape, SceneObject
 
-#: Light grey-brown wood.
-SHELF_COLOR: Rgba = (0.66, 0.52, 0.38, 1.0)
+#: Light grey painted wood (it stands out from the brown table).
+SHELF_COLOR: Rgba = (0.78, 0.78, 0.8, 1.0)
 
 
 @dataclass(frozen=True)

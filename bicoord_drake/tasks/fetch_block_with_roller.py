@@ -68,8 +68,8 @@ COLORS = {
     "orange": (0.95, 0.5, 0.1, 1.0),
 }
 #: The roller: a wooden dowel lying along x in front of the shelf (length, diameter, m).
-ROLLER_LENGTH, ROLLER_DIAMETER = (0.34, 0.38), (0.030, 0.034)
-ROLLER_DENSITY = 450.0  # kg/m^3, light wood: 0.11-0.16 kg
+ROLLER_LENGTH, ROLLER_DIAMETER = (0.34, 0.38), (0.032, 0.036)
+ROLLER_DENSITY = 450.0  # kg/m^3, light wood: 0.12-0.17 kg
 ROLLER_COLOR = (0.84, 0.67, 0.45, 1.0)
 ROLLER_X, ROLLER_Y, ROLLER_YAW = (0.13, 0.17), (-0.21, -0.17), (-0.15, 0.15)
 #: Stage 2: the cube's centre within this xy distance (m) of the top plate's centre.
@@ -79,7 +79,7 @@ XY_TOL = 0.02
 #: this far above the roller's bottom at least; the roller is lifted this high after the grasp.
 SPEED = 0.7
 GRIP_BACK = 0.09
-TIP_CLEARANCE = 0.008
+TIP_CLEARANCE = 0.007
 LIFT = 0.08
 #: The push: the roller's axis this high above the table (below the cube's middle: the
 #: table's friction at the cube's bottom does not tip it), its tip from START_X (outside the
@@ -105,7 +105,7 @@ SETTLE_STEPS = 8
 class FetchBlockWithRoller(Task):
     """Push the cube out from under the shelf with the roller, then put it on the shelf.
 
-    Description: a low wooden shelf stands on the table: two side walls under a flat top
+    Description: a low grey shelf stands on the table: two side walls under a flat top
     plate, forming a tunnel along x. A 5 cm cube sits inside the tunnel, out of any gripper's
     reach; a wooden roller (a dowel about 36 cm long) lies in front of the shelf on the right.
     The right arm grasps the roller behind its middle, lays it level along the tunnel's axis
@@ -124,7 +124,7 @@ class FetchBlockWithRoller(Task):
 
     Randomization: the cube's centre at x in [-0.125, -0.025] (under the shelf, as in the
     reference), y in [-0.01, 0.01], yaw +-0.15 rad, and its colour; the roller's length
-    34-38 cm and diameter 3.0-3.4 cm, its centre at x in [0.13, 0.17], y in [-0.21, -0.17],
+    34-38 cm and diameter 3.2-3.6 cm, its centre at x in [0.13, 0.17], y in [-0.21, -0.17],
     yaw +-0.15 rad about its lying axis along x.
 
     Stages: (1) the cube's centre past x = -0.15 (out of the tunnel's left end), lying on a

@@ -8,7 +8,9 @@ import pytest
 
 import bicoord_drake.tasks.fetch_block_with_roller as fb
 from bicoord_drake.config import StationConfig
+from bicoord_drake.models.embodiment import aloha_viperx
 from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.planning.grasps import GraspParams, grasp_candidates
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.stages.predicates import reset_predicate
@@ -64,6 +66,12 @@ def test_the_cube_starts_inside_the_tunnel_and_the_roller_in_front(task, seed):
     # a roller thick enough to push with, thinner than the tunnel is high
     assert 2 * roller.shape.radius < dims.clearance - fb.PUSH_Z
     assert scene.object(fb.CUBE).color == fb.COLORS[d["color"]]
+    # a top grasp across the roller fits, its fingertips above the table
+    gripper = aloha_viperx().arm.gripper
+    params = GraspParams(tip_clearance=fb.TIP_CLEARANCE)
+    grasps = grasp_candidates(roller, gripper, kinds=["top"], params=params)
+    tips = [g.X_WG.translation()[2] - gripper.pad_length / 2 - TABLE_TOP for g in grasps]
+    assert grasps and min(tips) >= fb.TIP_CLEARANCE - 1e-9
 
 
 def test_initial_state_scores_nothing(task, scene):
