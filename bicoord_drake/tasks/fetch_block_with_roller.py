@@ -1,5 +1,8 @@
 """fetch_block_with_roller: push a cube out from under a low shelf with a wooden roller, then
-set it on the shelf."""
+set it on the shelf.
+
+Measurements of the expert in physics: benchmarks/bench_task_fetch_block_with_roller.md.
+"""
 
 from __future__ import annotations
 
@@ -125,7 +128,7 @@ class FetchBlockWithRoller(Task):
     Randomization: the cube's centre at x in [-0.125, -0.025] (under the shelf, as in the
     reference), y in [-0.01, 0.01], yaw +-0.15 rad, and its colour; the roller's length
     34-38 cm and diameter 3.2-3.6 cm, its centre at x in [0.13, 0.17], y in [-0.21, -0.17],
-    yaw +-0.15 rad about its lying axis along x.
+    turned +-0.15 rad about the vertical from lying along x.
 
     Stages: (1) the cube's centre past x = -0.15 (out of the tunnel's left end), lying on a
     face on the table (transient); (2) the cube resting on the top plate, its centre within
