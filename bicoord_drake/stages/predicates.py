@@ -692,3 +692,26 @@ def clear_of(obj: str, support: str, margin: float = 0.0) -> Predicate:
         return footprint_gap(footprint(s, obj), footprint(s, support)) >= margin
 
     return Predicate(check, f"clear_of({obj!r}, {support!r}, margin={margin})")
+# ----------------------------------------------------------------- pushed out, lying on a face
+def beyond(obj: str, bound: float, axis: str = "x", below: bool = True) -> Predicate:
+    """The centre of `obj`'s box is past `bound` (m, world) along `axis`: below it (`below`)
+    or above it (a cube pushed out of a tunnel's far end)."""
+    i = _AXES[axis]
+
+    def check(s: WorldState) -> bool:
+        c = float(centre(s, obj)[i])
+        return c < bound if below else c > bound
+
+    side = "<" if below else ">"
+    return Predicate(check, f"beyond({obj!r}, {axis} {side} {bound:g})")
+
+
+def on_a_face(obj: str, max_tilt: float = math.radians(15)) -> Predicate:
+    """One of the object's box axes within `max_tilt` of vertical: a box lies on a face
+    (whichever), not tipped onto an edge or a corner."""
+
+    def check(s: WorldState) -> bool:
+        tilts = [tilt(s, obj, axis) for axis in _AXES]
+        return min(min(t, math.pi - t) for t in tilts) <= max_tilt
+
+    return Predicate(check, f"on_a_face({obj!r}, max_tilt={max_tilt:.3g})")

@@ -17,6 +17,7 @@ TASK_MODULES: tuple[str, ...] = (
     "cook",
     "exchange_mics",
     "extract_bottom_block_to_top",
+    "fetch_block_with_roller",
     "handover_block_with_bowls",
     "jigsaw",
     "place_plate_and_cup",

@@ -1,0 +1,219 @@
+"""fetch_block_with_roller: seeded scenes, stages on synthetic states, (slow) the expert."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import bicoord_drake.tasks.fetch_block_with_roller as fb
+from bicoord_drake.config import StationConfig
+from bicoord_drake.models.embodiment import aloha_viperx
+from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.planning.grasps import GraspParams, grasp_candidates
+from bicoord_drake.runner.generate import run_expert
+from bicoord_drake.stages import StageMonitor, WorldState
+from bicoord_drake.stages.predicates import reset_predicate
+from bicoord_drake.tasks.base import check_task_class
+from tests.stages.helpers import quat_about
+
+SEED = 4
+UP = (1.0, 0.0, 0.0, 0.0)
+PLATE_TOP = TABLE_TOP + fb.SHELF_DIMS.top
+
+
+@pytest.fixture(scope="module")
+def task():
+    return fb.FetchBlockWithRoller()
+
+
+@pytest.fixture(scope="module")
+def scene(task):
+    return task.sample_scene(SEED)
+
+
+def test_task_class_is_well_formed(task):
+    check_task_class(type(task))
+    assert task.step_limit == 450
+
+
+def test_scene_is_a_function_of_the_seed(task):
+    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
+    assert a == b and a != c
+    assert {o.name for o in a.free_objects} == {fb.CUBE, fb.ROLLER}
+    assert a.object(fb.SHELF).fixed
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_the_cube_starts_inside_the_tunnel_and_the_roller_in_front(task, seed):
+    scene = task.sample_scene(seed)
+    d, dims = scene.draws, fb.SHELF_DIMS
+    x, y, z = scene.object(fb.CUBE).pose.xyz
+    assert [x, y] == d["cube_xy"] and z == pytest.approx(TABLE_TOP + fb.CUBE_EDGE / 2)
+    assert fb.CUBE_X[0] <= x <= fb.CUBE_X[1] and fb.CUBE_Y[0] <= y <= fb.CUBE_Y[1]
+    # wholly under the plate, clear of both walls even at its yaw, lower than the plate
+    half = fb.CUBE_EDGE / 2 * (abs(math.cos(d["cube_yaw"])) + abs(math.sin(d["cube_yaw"])))
+    assert abs(y) + half < dims.gap / 2 - 0.005
+    assert fb.EXIT_X <= x - fb.CUBE_EDGE / 2 and x + fb.CUBE_EDGE / 2 <= fb.EXIT_X + dims.length
+    assert fb.CUBE_EDGE < dims.clearance
+    roller = scene.object(fb.ROLLER)
+    assert roller.shape.length == d["roller_length"]
+    assert roller.shape.radius == pytest.approx(d["roller_diameter"] / 2)
+    rx, ry, rz = roller.pose.xyz
+    assert [rx, ry] == d["roller_xy"] and rz == pytest.approx(TABLE_TOP + roller.shape.radius)
+    assert ry + roller.shape.radius < fb.SHELF_XY[1] - dims.width / 2  # in front of the shelf
+    assert roller.pose.rpy == pytest.approx((0.0, math.pi / 2, d["roller_yaw"]))
+    # a roller thick enough to push with, thinner than the tunnel is high
+    assert 2 * roller.shape.radius < dims.clearance - fb.PUSH_Z
+    assert scene.object(fb.CUBE).color == fb.COLORS[d["color"]]
+    # a top grasp across the roller fits, its fingertips above the table
+    gripper = aloha_viperx().arm.gripper
+    params = GraspParams(tip_clearance=fb.TIP_CLEARANCE)
+    grasps = grasp_candidates(roller, gripper, kinds=["top"], params=params)
+    tips = [g.X_WG.translation()[2] - gripper.pad_length / 2 - TABLE_TOP for g in grasps]
+    assert grasps and min(tips) >= fb.TIP_CLEARANCE - 1e-9
+
+
+def test_initial_state_scores_nothing(task, scene):
+    stages = task.stages(scene)
+    assert [s.kind for s in stages] == ["transient", "persistent"]
+    assert sum(s.score for s in stages) == pytest.approx(1.0)
+    assert list(StageMonitor(stages).evaluate(WorldState.initial(scene))) == [0, 0]
+
+
+# ------------------------------------------------------------------ synthetic states
+def _state(scene, poses, openings=(1.0, 1.0), contacts=None, velocities=None, step=0):
+    s = WorldState.initial(scene)
+    action = np.array(s.action)
+    action[6], action[13] = openings
+    return replace(
+        s,
+        object_poses={**s.object_poses, **poses},
+        action=action,
+        contacts=contacts or {},
+        object_velocities={**s.object_velocities, **(velocities or {})},
+        step=step,
+        time=step / 15,
+    )
+
+
+def _after(pred, state, frames=8):
+    """`pred` after `frames` identical updates at 15 Hz (stateful predicates see time pass)."""
+    reset_predicate(pred)
+    return [pred(replace(state, step=k, time=k / 15)) for k in range(frames)][-1]
+
+
+def _cube(x, y=0.0, z=TABLE_TOP + fb.CUBE_EDGE / 2, quat=UP):
+    return {fb.CUBE: np.array([x, y, z, *quat])}
+
+
+def _on_plate(dx=0.0, dy=0.0, dz=0.0, quat=UP):
+    x, y = fb.SHELF_XY
+    return _cube(x + dx, y + dy, PLATE_TOP + fb.CUBE_EDGE / 2 + dz, quat)
+
+
+def test_push_counts_the_cube_out_past_the_line_on_the_table(task, scene):
+    out = task.stages(scene)[0].predicate
+    assert out(_state(scene, _cube(-0.17)))
+    assert out(_state(scene, _cube(-0.16, 0.03, quat=quat_about("z", 0.5))))  # turned, aside
+    assert out(_state(scene, _cube(-0.17, quat=quat_about("x", math.pi / 2))))  # rolled over
+    # still in the tunnel, or half out (its centre not past the line)
+    assert not out(_state(scene, _cube(-0.13)))
+    assert not out(_state(scene, _cube(-0.148)))
+    # knocked onto an edge, or lifted up (not on the table)
+    edge = _cube(-0.17, z=TABLE_TOP + 0.035, quat=quat_about("y", math.pi / 4))
+    assert not out(_state(scene, edge))
+    assert not out(_state(scene, _cube(-0.17, z=TABLE_TOP + 0.06)))
+
+
+def test_placement_counts_released_on_the_plate_centre_at_rest(task, scene):
+    placed = task.stages(scene)[1].predicate
+    assert _after(placed, _state(scene, _on_plate()))
+    assert _after(placed, _state(scene, _on_plate(dx=0.012, dy=-0.012, quat=quat_about("z", 1))))
+    assert not _after(placed, _state(scene, _on_plate()), frames=3)  # not 0.3 s at rest yet
+
+
+def test_placement_is_not_fooled(task, scene):
+    placed = task.stages(scene)[1].predicate
+    on = _on_plate()
+    # beside the target: 3 cm off centre, on the plate's edge
+    assert not _after(placed, _state(scene, _on_plate(dx=0.03)))
+    assert not _after(placed, _state(scene, _on_plate(dy=0.06)))
+    # still held by the left hand; the right hand still gripping the roller (not both open)
+    held = {fb.CUBE: {"left"}}
+    assert not _after(placed, _state(scene, on, (0.0, 1.0), held))
+    assert not _after(placed, _state(scene, on, (1.0, 0.0), {fb.ROLLER: {"right"}}))
+    # hovering above the plate, dropped on the table by the shelf, back in the tunnel
+    assert not _after(placed, _state(scene, _on_plate(dz=0.02)))
+    assert not _after(placed, _state(scene, _cube(-0.2)))
+    assert not _after(placed, _state(scene, _cube(fb.SHELF_XY[0])))
+    # toppled onto an edge on the plate
+    edge = _on_plate(dz=0.01, quat=quat_about("y", math.pi / 4))
+    assert not _after(placed, _state(scene, edge))
+    # still sliding
+    moving = {fb.CUBE: np.array([0.05, 0.0, 0.0, 0.0, 0.0, 0.0])}
+    assert not _after(placed, _state(scene, on, velocities=moving))
+
+
+def test_stages_count_only_in_order(task, scene):
+    """The cube on the shelf without having been pushed out past the line scores nothing."""
+    monitor = StageMonitor(task.stages(scene))
+    on = _state(scene, _on_plate())
+    for k in range(20):
+        monitor.update(replace(on, step=k, time=k / 15))
+    monitor.finish(replace(on, step=20, time=20 / 15))
+    assert monitor.completed() == [False, False] and monitor.score() == 0.0
+
+
+def test_pushed_out_then_placed_scores_both(task, scene):
+    monitor = StageMonitor(task.stages(scene))
+    out, on = _state(scene, _cube(-0.19)), _state(scene, _on_plate())
+    states = [replace(out, step=k, time=k / 15) for k in range(3)]
+    states += [replace(on, step=k, time=k / 15) for k in range(3, 15)]
+    for s in states:
+        monitor.update(s)
+    monitor.finish(states[-1])
+    assert monitor.completed() == [True, True] and monitor.score() == pytest.approx(1.0)
+
+
+# ------------------------------------------------------------------ expert geometry
+def test_the_roller_is_grasped_behind_its_middle(scene):
+    from bicoord_drake.planning.model import PlanningModel
+    from bicoord_drake.planning.skills import SkillContext
+
+    ctx = SkillContext(PlanningModel(scene))
+    X_WO = ctx.model.object_pose(fb.ROLLER)
+    for g in fb.roller_grasps(ctx):
+        p = g.X_WG.translation() - X_WO.translation()
+        axis = X_WO.rotation().col(2)
+        assert abs(p @ axis) == pytest.approx(fb.GRIP_BACK)
+        assert (p @ axis) * axis[0] > 0  # toward +x, away from the shelf
+        assert np.allclose(X_WO @ g.X_OG.translation(), g.X_WG.translation())
+        assert g.approach[2] < -0.99  # from above
+
+
+def test_roller_tool_puts_the_tip_on_the_point_level_along_minus_x():
+    from pydrake.all import RigidTransform, RollPitchYaw
+
+    X_WO = RigidTransform(RollPitchYaw(0.3, math.pi / 2, 0.2), [0.2, -0.1, 0.9])
+    X_WT = RigidTransform(RollPitchYaw(math.pi, 0.0, 0.1), [0.25, -0.1, 0.91])
+    axis = X_WO.rotation().col(2)
+    tool = fb.RollerTool(
+        fb._turned(X_WO.rotation(), -axis, np.array([-1.0, 0.0, 0.0])),
+        np.array([0.0, 0.0, -0.18]),
+        X_WO.inverse() @ X_WT,
+    )
+    tip = np.array([0.0, 0.02, 0.77])
+    X_WT2 = tool.tcp_at(tip)
+    X_WO2 = X_WT2 @ (X_WO.inverse() @ X_WT).inverse()
+    assert np.allclose(X_WO2 @ np.array([0.0, 0.0, -0.18]), tip)
+    assert np.allclose(X_WO2.rotation().col(2), [1.0, 0.0, 0.0])  # the tip end toward -x
+
+
+# ------------------------------------------------------------------ physics
+@pytest.mark.slow
+def test_expert_fetches_the_block_on_two_seeds(task):
+    for seed in (0, 1):
+        result = run_expert(task, seed, StationConfig(render=False))
+        assert result.success, (seed, result.reason)
+        assert len(result.recorder) <= task.step_limit
