@@ -692,6 +692,8 @@ def clear_of(obj: str, support: str, margin: float = 0.0) -> Predicate:
         return footprint_gap(footprint(s, obj), footprint(s, support)) >= margin
 
     return Predicate(check, f"clear_of({obj!r}, {support!r}, margin={margin})")
+
+
 # ----------------------------------------------------------------- pushed out, lying on a face
 def beyond(obj: str, bound: float, axis: str = "x", below: bool = True) -> Predicate:
     """The centre of `obj`'s box is past `bound` (m, world) along `axis`: below it (`below`)
