@@ -34,6 +34,7 @@ from bicoord_drake.stages.predicates import (
     at_rest,
     count_true,
     hands_free,
+    held_by,
     lifted,
     settled,
     tip_in,
@@ -57,17 +58,18 @@ PEN_GAP = 0.035
 HOLDER_GAP = 0.025
 #: Grasp: the TCP sits GRASP_BACK (m) from the pen's middle towards its back end (more pen
 #: below the fingers once it hangs tip down), the fingertips TIP_CLEARANCE above the table.
-GRASP_BACK = 0.02
+GRASP_BACK = 0.035
 TIP_CLEARANCE = 0.006
-#: The tip is let go INSERT (m) below the rim (it then drops to the floor and leans).
-INSERT = 0.03
+#: The tip is let go INSERT (m) below the rim (it then drops to the floor and leans); with
+#: GRASP_BACK this keeps the gripper above the top of a pen standing straight in the holder.
+INSERT = 0.025
 #: The pen is carried over the holder this much (m) higher and lowered straight from there.
 LOWER = 0.06
 #: Release opening (the fingers part to about 5 cm, clear of the pens already standing).
 RELEASE_OPENING = 0.55
-#: Candidate tip points in the holder (from its centre, m): the one farthest from the pens
-#: already in it is used.
-DROP_RING = 0.012
+#: Candidate tip points in the holder: its centre and two rings around it (radii, m); the
+#: one farthest from the pens already in it is used.
+DROP_RINGS = (0.012, 0.022)
 #: Turn-taking zone around the holder (xy radius, m) and the lag (control steps).
 CLEAR_RADIUS = 0.12
 CLEAR_STEPS = 3
@@ -114,12 +116,13 @@ class CollectPens(Task):
     pens come within 3.5 cm of each other or 2.5 cm of the holder are drawn again. The
     holder is fixed at (-0.06, -0.05) (the spec's spot).
 
-    Stages: (1) the first two pens both lifted 5 cm; (2)-(4) one, two, three pens standing in
-    the holder (a pen's tip inside the holder's real cavity - within its inner wall, below
-    its rim, not below its floor - the pen tilted at most as far as the holder lets a pen
-    standing on its floor lean (its geometry: about 32 deg, + 3 deg), no finger touching it
-    and at rest); (5) all four standing in it, both grippers open, all at rest for 0.3 s.
-    Stages (2)-(5) score 0.25 each and must still hold at the end.
+    Stages: (1) the first two pens both lifted 5 cm, each in its arm's closed gripper;
+    (2)-(4) one, two, three pens standing in the holder (a pen's tip inside the holder's
+    real cavity - within its inner wall, below its rim, not below its floor - the pen tilted
+    at most as far as the holder lets a pen standing on its floor lean (its geometry: about
+    32 deg, + 3 deg), no finger touching it and at rest); (5) all four standing in it, both
+    grippers open, all at rest for 0.3 s. Stages (2)-(5) score 0.25 each and must still hold
+    at the end.
 
     Success: all four pens standing tip first in the holder, both grippers open, none
     touched, all at rest for 0.3 s.
@@ -215,7 +218,12 @@ class CollectPens(Task):
         ]
         names = ("both pick", "first pen in", "second pen in", "third pen in", "last pen in")
         preds: list[Predicate] = [
-            all_of(lifted(PENS[0], LIFT), lifted(PENS[1], LIFT)),
+            all_of(
+                lifted(PENS[0], LIFT),
+                lifted(PENS[1], LIFT),
+                held_by(PENS[0], first),
+                held_by(PENS[1], second),
+            ),
             in_holder_count(1, limit),
             in_holder_count(2, limit),
             in_holder_count(3, limit),
@@ -343,11 +351,13 @@ def _insert(ctx: SkillContext, side: str) -> ArmPlan:
 
 
 def _drop_point(ctx: SkillContext, X_WH: RigidTransform, held: str) -> np.ndarray:
-    """The xy (world) in the holder, of the centre and a ring of DROP_RING around it, that is
-    farthest from the axes of the pens already standing in the cup (within its height)."""
+    """The xy (world) in the holder, of its centre and the DROP_RINGS around it, that is
+    farthest from the axes of the pens already standing in the cup (over the height the
+    held pen passes through)."""
     c = X_WH.translation()
     cands = [c[:2]] + [
-        c[:2] + DROP_RING * np.array([math.cos(a), math.sin(a)])
+        c[:2] + r * np.array([math.cos(a), math.sin(a)])
+        for r in DROP_RINGS
         for a in np.linspace(0, 2 * math.pi, 8, endpoint=False)
     ]
     segs = []
