@@ -56,6 +56,10 @@ Y_RANGE = ((0.02, 0.07), (-0.10, -0.05))
 #: Lying pens keep this much room (m) between their surfaces, and from the holder's wall.
 PEN_GAP = 0.035
 HOLDER_GAP = 0.025
+#: Room (m) from a pen's grasp point to the other pen on its side (surface): the fingers,
+#: open APPROACH_MARGIN beside the pen, reach about 3 cm from its axis.
+GRASP_ROOM = 0.045
+APPROACH_MARGIN = 0.01
 #: Grasp: the TCP sits GRASP_BACK (m) from the pen's middle towards its back end (more pen
 #: below the fingers once it hangs tip down), the fingertips TIP_CLEARANCE above the table.
 GRASP_BACK = 0.035
@@ -97,9 +101,9 @@ class CollectPens(Task):
 
     Description: a pen holder (a cup 8 cm across, 10 cm tall) stands near the middle of the
     table; two pens or markers lie flat on each side. Both arms pick the pen nearer the
-    holder on their side at once, from above, across the pen a little behind its middle; the
+    holder on their side at once, from above, across the pen 3.5 cm behind its middle; the
     first arm turns its wrist so the pen hangs tip down, carries it over the holder, lowers
-    the tip 3 cm into the cup and lets go (the pen drops to the floor and leans on the rim),
+    the tip 2.5 cm into the cup and lets go (the pen drops to the floor and leans on the rim),
     while the other waits beside the holder with its own pen. Then the second arm puts its
     pen in while the first picks its other one, the first puts that in while the second picks
     its last, and the second puts the last one in while the first retreats. Each arm arrives
@@ -113,7 +117,8 @@ class CollectPens(Task):
     shifted 4 cm outwards so that a pen pointing at the holder does not cross it) or
     [0.23, 0.25] (right), on each side one at y in [0.02, 0.07] and one at y in
     [-0.10, -0.05]; each tip points one of 8 ways (multiples of 45 deg); layouts where two
-    pens come within 3.5 cm of each other or 2.5 cm of the holder are drawn again. The
+    pens come within 3.5 cm of each other or 2.5 cm of the holder, or a grasp point within
+    4.5 cm of the other pen on its side, are drawn again. The
     holder is fixed at (-0.06, -0.05) (the spec's spot).
 
     Stages: (1) the first two pens both lifted 5 cm, each in its arm's closed gripper;
@@ -321,7 +326,16 @@ def pen_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
 
 
 def _pick(ctx: SkillContext, side: str, name: str) -> ArmPlan:
-    return pick(ctx, side, name, grasps=pen_grasps(ctx, side, name))
+    """Pick `name` across (:func:`pen_grasps`), the jaw open only APPROACH_MARGIN beside the
+    pen on the way down (clear of the other pen on that side)."""
+    gripper = ctx.model.embodiment.arm.gripper
+    shape: PenShape = ctx.model.object(name).shape
+    opening = float(gripper.opening(shape.radius + APPROACH_MARGIN))
+    ctx.model.set_gripper(side, opening)  # plan the approach with the fingers that narrow
+    try:
+        return pick(ctx, side, name, grasps=pen_grasps(ctx, side, name), approach_opening=opening)
+    finally:
+        ctx.model.set_gripper(side, ctx.model.embodiment.home_opening)
 
 
 def _insert(ctx: SkillContext, side: str) -> ArmPlan:
@@ -437,11 +451,20 @@ def _positions(
 
 
 def _layout_ok(poses: list[list[float]], shapes: list[PenShape]) -> bool:
-    """The two pens of one side are PEN_GAP apart and HOLDER_GAP from the holder."""
+    """The two pens of one side are PEN_GAP apart and HOLDER_GAP from the holder, and each
+    one's grasp point GRASP_ROOM from the other."""
     segs = [_ends(x, y, yaw, s.length) for (x, y, yaw), s in zip(poses, shapes, strict=True)]
     h = np.asarray(HOLDER_XY)
     for (a, b), s in zip(segs, shapes, strict=True):
         if _segment_distance(a, b, h, h) < HOLDER.radius + s.radius + HOLDER_GAP:
             return False
     gap = _segment_distance(*segs[0], *segs[1]) - shapes[0].radius - shapes[1].radius
-    return gap >= PEN_GAP
+    if gap < PEN_GAP:
+        return False
+    for k in (0, 1):  # the fingers at one pen's grasp point stay clear of the other pen
+        x, y, yaw = poses[k]
+        back = np.array([x, y]) - GRASP_BACK * np.array([math.cos(yaw), math.sin(yaw)])
+        other = segs[1 - k]
+        if _segment_distance(back, back, *other) - shapes[1 - k].radius < GRASP_ROOM:
+            return False
+    return True
