@@ -108,7 +108,8 @@ class CollectPens(Task):
     pen in while the first picks its other one, the first puts that in while the second picks
     its last, and the second puts the last one in while the first retreats. Each arm arrives
     over the holder as the other leaves it (the arrival is timed against the other's
-    departure). The tip goes where it is farthest from the pens already standing in the cup.
+    departure; where no such timing keeps the arms apart, the arriver starts once the leaver is
+    done). The tip goes where it is farthest from the pens already standing in the cup.
     Which arm goes first is drawn per seed.
 
     Randomization: which arm goes first; each of the four is a pen (1.4-1.5 cm thick,
@@ -260,9 +261,18 @@ class CollectPens(Task):
             ctx.refresh_grasps(poses)
 
         def turn(leaver: ArmPlan, arriver: ArmPlan) -> Motion:
-            return arrive_as_leaves(
-                ctx, leaver, arriver, HOLDER_XY, CLEAR_RADIUS, lag_steps=CLEAR_STEPS
-            )
+            try:
+                return arrive_as_leaves(
+                    ctx, leaver, arriver, HOLDER_XY, CLEAR_RADIUS, lag_steps=CLEAR_STEPS
+                )
+            except PlanningError as err:
+                if err.reason != "arm_conflict":
+                    raise
+            # No delay up to merge's limit keeps the arms apart (a long pick): the arriver
+            # starts once the leaver is done. The leaver was planned with the arriver at its
+            # start and the arriver with the leaver at its end; merge checks it again.
+            plans = {leaver.side: leaver, arriver.side: arriver.delayed(leaver.num_steps - 1)}
+            return merge(ctx, plans["left"], plans["right"], stretch=False)
 
         # ---- stage 1: both arms pick the pen nearer the holder on their side
         plans = {first: _pick(ctx, first, p1)}
