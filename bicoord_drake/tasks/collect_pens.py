@@ -268,11 +268,27 @@ class CollectPens(Task):
             except PlanningError as err:
                 if err.reason != "arm_conflict":
                     raise
-            # No delay up to merge's limit keeps the arms apart (a long pick): the arriver
-            # starts once the leaver is done. The leaver was planned with the arriver at its
-            # start and the arriver with the leaver at its end; merge checks it again.
+            # merge's check also holds each arm to its padding from the pens standing in the
+            # holder, which a finger leaving it can graze (each plan kept its own clearance
+            # from them when it was made): check the arms against each other only, and if
+            # no timing keeps them apart, the arriver starts once the leaver is done (the
+            # leaver was planned with the arriver at its start, the arriver with the leaver
+            # at its end).
+            try:
+                return arrive_as_leaves(
+                    ctx,
+                    leaver,
+                    arriver,
+                    HOLDER_XY,
+                    CLEAR_RADIUS,
+                    lag_steps=CLEAR_STEPS,
+                    ignore=PENS,
+                )
+            except PlanningError as err:
+                if err.reason != "arm_conflict":
+                    raise
             plans = {leaver.side: leaver, arriver.side: arriver.delayed(leaver.num_steps - 1)}
-            return merge(ctx, plans["left"], plans["right"], stretch=False)
+            return merge(ctx, plans["left"], plans["right"], stretch=False, ignore=PENS)
 
         # ---- stage 1: both arms pick the pen nearer the holder on their side
         plans = {first: _pick(ctx, first, p1)}
