@@ -81,6 +81,11 @@ CLEAR_STEPS = 3
 WAIT_AT = (0.2, 0.06, 0.2)
 #: Control steps both arms hold still at the end (the pens must be seen at rest for 0.3 s).
 SETTLE_STEPS = 10
+#: Before that, both hold in chunks of 5 steps (at most this many) until no pen moved more
+#: than STILL_MOVE (m) or turned more than STILL_TURN (rad) over a chunk.
+MAX_SETTLE_CHUNKS = 8
+STILL_MOVE = 0.001
+STILL_TURN = 0.01
 #: A pen counts as lifted this far (m) above where it lay.
 LIFT = 0.05
 #: Slack (rad) on the holder's geometric lean limit (compliant contact, the wall polygon).
@@ -308,6 +313,13 @@ class CollectPens(Task):
         # ---- stage 5: the first arm retreats as the second puts the last pen in
         leaver = retreat(ctx, first)
         yield from run(turn(leaver, _insert(ctx, second)))
+        # ---- both hold still until the pens have come to rest (the last one may still slide
+        # down into its lean), then SETTLE_STEPS more
+        for _ in range(MAX_SETTLE_CHUNKS):
+            before = view.object_transforms()
+            yield from merge(ctx, hold(ctx, "left", 5), hold(ctx, "right", 5)).actions()
+            if _pens_still(before, view.object_transforms()):
+                break
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
@@ -423,6 +435,17 @@ def _drop_point(ctx: SkillContext, X_WH: RigidTransform, held: str) -> np.ndarra
         return out
 
     return np.asarray(max(cands, key=clearance), dtype=float)
+
+
+def _pens_still(before: dict, after: dict) -> bool:
+    """No pen moved more than STILL_MOVE or turned more than STILL_TURN between two
+    observations (name -> RigidTransform)."""
+    for name in PENS:
+        a, b = before[name], after[name]
+        turn = (a.rotation().inverse() @ b.rotation()).ToAngleAxis().angle()
+        if np.linalg.norm(a.translation() - b.translation()) > STILL_MOVE or turn > STILL_TURN:
+            return False
+    return True
 
 
 def _wait(ctx: SkillContext, side: str) -> ArmPlan:
