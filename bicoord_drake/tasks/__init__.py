@@ -14,7 +14,6 @@ TASK_MODULES: tuple[str, ...] = (
     "build_bridge",
     "build_tower_with_blocks",
     "clean_table",
-    "collect_pens",
     "cook",
     "exchange_mics",
     "handover_block_with_bowls",

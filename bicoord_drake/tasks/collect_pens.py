@@ -1,4 +1,11 @@
-"""collect_pens: the two arms take turns standing four pens and markers in a pen holder."""
+"""collect_pens: the two arms take turns standing four pens and markers in a pen holder.
+
+Status: NOT registered (not in ``TASK_MODULES``): the expert kept 25 of seeds 0-29 at
+6ae2fe3 / 25cb969 (below the 27/30 bar; failures: three ``arm_conflict`` in a turn, two
+final pens still moving at the end, which the settle-until-still hold since ff625d6 is
+meant to fix); replay and ``--stage k`` not measured yet. See
+benchmarks/bench_task_collect_pens.md.
+"""
 
 from __future__ import annotations
 
