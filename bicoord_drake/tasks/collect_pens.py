@@ -2,8 +2,8 @@
 
 Status: NOT registered (not in ``TASK_MODULES``): the expert kept 25 of seeds 0-29 at
 6ae2fe3 / 25cb969 (below the 27/30 bar; failures: three ``arm_conflict`` in a turn, two
-final pens still moving at the end, which the settle-until-still hold since ff625d6 is
-meant to fix); replay and ``--stage k`` not measured yet. See
+final pens not in at the end; at ff625d6 seeds 5, 11 and 18 are kept, 15 and 24 still fail,
+but no full 30-seed run was made there); replay and ``--stage k`` not measured yet. See
 benchmarks/bench_task_collect_pens.md.
 """
 
