@@ -23,6 +23,7 @@ from bicoord_drake.models.geometry import (
     sdf_inertial,
     sdf_mesh_visual,
 )
+from bicoord_drake.models.pens import PenShape
 
 
 class _Shape(BaseModel):
@@ -293,7 +294,8 @@ Shape = Annotated[
     | BinShape
     | PotShape
     | CompoundShape
-    | MugShape,
+    | MugShape
+    | PenShape,
     Field(discriminator="kind"),
 ]
 
@@ -406,6 +408,10 @@ def object_sdf(obj: SceneObject) -> str:
     body.append(
         sdf_mesh_visual(f"{obj.name}_visual", export_obj(mesh, f"obj_{obj.shape.kind}"), obj.color)
     )
+    accents = getattr(obj.shape, "accent_visuals", list)()  # parts in another colour
+    for i, (part, rgba) in enumerate(accents):
+        path = export_obj(part, f"obj_{obj.shape.kind}_accent")
+        body.append(sdf_mesh_visual(f"{obj.name}_accent_{i}", path, rgba))
     body.append("</link>")
     return (
         '<?xml version="1.0"?><sdf version="1.9" xmlns:drake="http://drake.mit.edu">'

@@ -717,3 +717,35 @@ def on_a_face(obj: str, max_tilt: float = math.radians(15)) -> Predicate:
         return min(min(t, math.pi - t) for t in tilts) <= max_tilt
 
     return Predicate(check, f"on_a_face({obj!r}, max_tilt={max_tilt:.3g})")
+
+
+# --------------------------------------------------------------------------- pens (collect_pens)
+def tip_in(
+    obj: str,
+    container: str,
+    max_tilt: float,
+    *,
+    cavity: Cavity | None = None,
+    floor_tol: float = 0.005,
+    container_tilt: float = math.radians(45),
+) -> Predicate:
+    """`obj` (a shape with a ``tip_point()``, e.g. a pen) stands tip first in `container`:
+    its tip lies inside the container's real cavity (:func:`cavity_of`) - within the inner
+    wall, below the rim, no more than `floor_tol` below the inner floor - and its axis (tip to
+    back, the object's z) is within `max_tilt` of upright (the most the container lets it
+    lean, e.g. :func:`bicoord_drake.models.pens.max_lean`). A pen lying across the opening,
+    upside down, beside the holder or with only its back end inside does not count."""
+
+    def check(s: WorldState) -> bool:
+        shape = s.shape(obj)
+        if not hasattr(shape, "tip_point"):
+            raise ValueError(f"{obj!r} is a {shape.kind}: it has no tip")
+        cav = cavity if cavity is not None else cavity_of(s.shape(container))
+        if tilt(s, container) > container_tilt or tilt(s, obj) > max_tilt:
+            return False
+        R_WC, p_WC = s.rotation(container), s.position(container)
+        tip_W = s.rotation(obj) @ shape.tip_point() + s.position(obj)
+        p = R_WC.T @ (tip_W - p_WC)
+        return bool(cav.contains_xy(p) and cav.floor - floor_tol <= p[2] <= cav.rim)
+
+    return Predicate(check, f"tip_in({obj!r}, {container!r}, max_tilt={max_tilt:.3g})")
