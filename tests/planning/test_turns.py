@@ -5,6 +5,8 @@ import pytest
 from pydrake.all import RigidTransform
 
 import bicoord_drake.tasks.clean_table as ct
+from bicoord_drake.models.geometry import Pose, Primitive
+from bicoord_drake.models.objects import CompoundShape
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import bounding_box_grasps
@@ -76,7 +78,23 @@ def test_arrive_as_leaves_needs_two_arms(scene):
         arrive_as_leaves(ctx, plan, plan, ct.BIN_XY, RADIUS)
 
 
-def test_drop_into_lets_go_just_above_the_opening(scene):
+def _centred_compound(scene):
+    """The scene with its first object made a compound whose frame is at its centre (a
+    frame-at-the-bottom compound or a box would hide a wrong sign of the frame offset)."""
+    obj = scene.object(ct.OBJECTS[0])
+    part = Primitive(kind="box", size=(0.05, 0.04, 0.03))
+    xyz = (*obj.pose.xyz[:2], TABLE_TOP + 0.015)
+    new = obj.model_copy(
+        update={"shape": CompoundShape(parts=(part,)), "pose": Pose(xyz=xyz, rpy=obj.pose.rpy)}
+    )
+    objects = tuple(new if o.name == obj.name else o for o in scene.objects)
+    return scene.model_copy(update={"objects": objects})
+
+
+@pytest.mark.parametrize("centred", [False, True])
+def test_drop_into_lets_go_just_above_the_opening(scene, centred):
+    if centred:
+        scene = _centred_compound(scene)
     ctx = SkillContext(PlanningModel(scene))
     name = ct.OBJECTS[0]
     side = scene.draws["first_side"]

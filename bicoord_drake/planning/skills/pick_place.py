@@ -205,7 +205,7 @@ def drop_into(
     rim = X_WC.translation()[2] + top_offset(ctx.model.object(container).shape)
     shape = ctx.model.object(held.name).shape
     xy = X_WC.translation()[:2] + np.asarray(offset_xy, dtype=float)
-    z = rim + fall + bottom_offset(shape) - _bottom_below_frame(shape)
+    z = rim + fall + bottom_offset(shape) + _bottom_below_frame(shape)
     goal = RigidTransform(X_WC.rotation(), [xy[0], xy[1], z])
     plan = place(ctx, side, goal, approach_height=lower, retreat=retreat, yaws=yaws)
     plan.label = f"drop {held.name} into {container}"
