@@ -15,6 +15,7 @@ from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import (
     Grasp,
+    GraspParams,
     arm_base,
     grasp_candidates,
     stack_target,
@@ -34,6 +35,8 @@ from bicoord_drake.planning.skills import (
     retreat,
     solve_tcp,
 )
+from bicoord_drake.planning.skills.core import combine
+from bicoord_drake.planning.timing import ARM_SLICES
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     Predicate,
@@ -108,6 +111,14 @@ LIFT = 0.06
 #: lower cube closes on it only once the other's fingers have risen this far clear of its own,
 #: i.e. once the cube above has been lifted off it.
 ARM_GAP = 0.03
+#: Height (m) of the side grasps' TCP above the cube's bottom: the gripper body (5 cm tall about
+#: the TCP) then clears the table when the cube is set on a sign; a 4 cm cube's pads reach its
+#: top face.
+SIDE_TCP = 0.029
+#: The lower cube's arm moves its fingers in only once the upper cube has risen this much (m).
+CLEAR_RISE = 0.025
+#: Most control steps the lower cube's arm is held back beyond that, to keep ARM_GAP.
+MAX_DELAY = 90
 #: Control steps over which a gripper lets go of a cube set on another (a slow release does
 #: not flick it off its support).
 RELEASE_STEPS = 12
@@ -299,21 +310,27 @@ class DivideBlockTower(Task):
             on_tower.remove(name)
             return plan
 
-        for step in _steps(scene.draws["order"]):
-            plans: dict[str, ArmPlan] = {}
-            if step.lower is not None:  # the lower cube's arm comes beside it first
-                plans[step.lower_arm] = _approach(ctx, step.lower_arm, CUBES[step.lower])
-            elif step.other == "retreat":
-                plans[step.other_arm] = retreat(ctx, step.other_arm)
-            plans[step.upper_arm] = take_and_place(step.upper_arm, CUBES[step.upper])
+        order = scene.draws["order"]
+        for step in _steps(order):
+            upper, arm_u, arm_o = CUBES[step.upper], step.upper_arm, step.other_arm
             if step.lower is not None:
-                arm = step.lower_arm
-                plans[arm] = plans[arm].then(take_and_place(arm, CUBES[step.lower]))
-            elif step.other == "prepare":
-                nxt = _next_lower(scene.draws["order"], step.upper)
-                plans[step.other_arm] = _approach(ctx, step.other_arm, CUBES[nxt])
-            with ctx.model.padded(ARM_GAP, 0.0):
-                motion = merge(ctx, plans.get("left"), plans.get("right"))
+                # the lower cube's arm comes beside it (planned with the upper cube still on
+                # it), then slides in as the upper cube rises and takes it
+                lower = CUBES[step.lower]
+                come = _approach(ctx, arm_o, lower, above=upper)
+                plans = {arm_u: take_and_place(arm_u, upper)}
+                plans[arm_o] = come.then(take_and_place(arm_o, lower))
+                motion = _take_below(ctx, plans[arm_u], plans[arm_o], (upper, lower))
+            else:
+                plans = {}
+                if step.other == "retreat":  # the leaving arm is planned first
+                    plans[arm_o] = retreat(ctx, arm_o)
+                plans[arm_u] = take_and_place(arm_u, upper)
+                if step.other == "prepare":  # come beside the cube it takes next
+                    k = _next_lower(order, step.upper)
+                    plans[arm_o] = _approach(ctx, arm_o, CUBES[k], above=CUBES[k + 1])
+                with ctx.model.padded(ARM_GAP, 0.0):
+                    motion = merge(ctx, plans.get("left"), plans.get("right"))
             yield from run(motion)
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
@@ -389,14 +406,21 @@ def _other(side: str) -> str:
 
 # -------------------------------------------------------------------- expert helpers
 def _side_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
-    """Side grasps of a cube from `side`'s own side of the tower (jaws horizontal), best
-    first."""
+    """Side grasps of a cube from `side`'s own side of the tower (jaws horizontal), the TCP
+    SIDE_TCP above the cube's bottom (so the gripper clears the table when it is set down),
+    best first."""
+    X_WO = ctx.model.object_pose(name)
+    shape = ctx.model.object(name).shape
+    params = GraspParams(
+        support_z=X_WO.translation()[2] - shape.size[2] / 2, side_clearance=SIDE_TCP
+    )
     grasps = grasp_candidates(
         ctx.model.object(name),
         ctx.model.embodiment.arm.gripper,
-        X_WO=ctx.model.object_pose(name),
+        X_WO=X_WO,
         base=arm_base(ctx.model.embodiment, side),
         kinds=["side"],
+        params=params,
     )
     mine = [g for g in grasps if g.approach @ APPROACH[side] >= APPROACH_COS]
     if not mine:
@@ -404,18 +428,76 @@ def _side_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
     return mine
 
 
-def _approach(ctx: SkillContext, side: str, name: str) -> ArmPlan:
+def _approach(ctx: SkillContext, side: str, name: str, above: str) -> ArmPlan:
     """`side` comes to the pregrasp of its first reachable side grasp of `name` and waits
-    there (a later :func:`pick` of `name` starts from it)."""
+    there, clear of the cube `above` it (a later :func:`pick` of `name` starts from it; its
+    grasp is checked as if `above` were gone, as it will be)."""
     reasons = []
     for grasp in _side_grasps(ctx, side, name):
         try:
             q_pre = solve_tcp(ctx, side, TcpTarget(grasp.X_WPre))
-            solve_tcp(ctx, side, TcpTarget(grasp.X_WG), seed6=q_pre, ignore=[name])
+            solve_tcp(ctx, side, TcpTarget(grasp.X_WG), seed6=q_pre, ignore=[name, above])
             return move(ctx, side, q_pre, label=f"approach {name}")
         except PlanningError as err:
             reasons.append(err.reason)
     raise PlanningError("approach_failed", f"{side} cannot come beside {name!r} ({reasons})")
+
+
+def _take_below(
+    ctx: SkillContext, upper_plan: ArmPlan, lower_plan: ArmPlan, names: tuple[str, str]
+) -> Motion:
+    """Both take plans at once, the lower cube's arm held back (if need be) until the upper
+    cube has risen CLEAR_RISE off it before its fingers move in from the pregrasp, and further
+    until the arms keep ARM_GAP apart throughout (`names`: the two cubes, which change hands)."""
+    clear = _risen(ctx, upper_plan, CLEAR_RISE)
+    enter = _entering(ctx, lower_plan)
+    start = max(0, clear - enter)
+    for delay in range(start, start + MAX_DELAY + 1, 3):
+        plans = {upper_plan.side: upper_plan, lower_plan.side: lower_plan.delayed(delay)}
+        motion = combine(plans["left"], plans["right"])
+        if ctx.checked(motion, ARM_GAP, 0.0, ignore=names):
+            motion.info["lower_delay"] = delay
+            return motion
+    raise PlanningError(
+        "arm_conflict", f"the arms taking {names} meet at every delay up to {start + MAX_DELAY}"
+    )
+
+
+def _tcp_track(ctx: SkillContext, plan: ArmPlan) -> np.ndarray:
+    """(N, 3) TCP positions of `plan`'s arm along it (the other arm as it is now)."""
+    q = ctx.q.copy()
+    out = []
+    for q6 in plan.q:
+        q[ARM_SLICES[plan.side]] = q6
+        out.append(ctx.model.tcp_pose(q, plan.side).translation())
+    return np.array(out)
+
+
+def _closed_at(plan: ArmPlan) -> int:
+    """The first sample at which `plan`'s gripper is commanded shut."""
+    shut = np.flatnonzero(plan.opening <= 1e-6)
+    if not len(shut):
+        raise PlanningError("no_grasp", f"{plan.label!r} never closes its gripper")
+    return int(shut[0])
+
+
+def _risen(ctx: SkillContext, plan: ArmPlan, height: float) -> int:
+    """The first sample after `plan`'s grasp at which its TCP has risen `height` (m)."""
+    z = _tcp_track(ctx, plan)[:, 2]
+    i = _closed_at(plan)
+    up = np.flatnonzero(z[i:] >= z[i] + height)
+    if not len(up):
+        raise PlanningError("no_lift", f"{plan.label!r} never lifts {height} m")
+    return i + int(up[0])
+
+
+def _entering(ctx: SkillContext, plan: ArmPlan) -> int:
+    """The sample at which `plan`'s fingers start moving in from the pregrasp (its TCP last
+    leaves a ball of PREGRASP - 1 cm around the grasp point before the grasp)."""
+    p = _tcp_track(ctx, plan)
+    i = _closed_at(plan)
+    far = np.linalg.norm(p[: i + 1] - p[i], axis=1) > GraspParams().pregrasp_distance - 0.01
+    return int(np.flatnonzero(far)[-1]) if far.any() else 0
 
 
 def _check_tower(view: WorldView, scene: Scene, names: list[str]) -> None:
