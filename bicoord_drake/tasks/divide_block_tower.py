@@ -30,6 +30,7 @@ from bicoord_drake.planning.skills import (
     hold,
     merge,
     move,
+    move_tcp,
     pick,
     place,
     retreat,
@@ -58,6 +59,7 @@ from bicoord_drake.stages.predicates import (
     within_square,
 )
 from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.registry import register_task
 
 #: The cubes, bottom of the tower first; their edges (m) and density (painted wood).
 CUBES = tuple(f"cube_{k}" for k in range(4))
@@ -107,6 +109,9 @@ APPROACH = {"left": np.array([1.0, 0.0, 0.0]), "right": np.array([-1.0, 0.0, 0.0
 APPROACH_COS = 0.8
 #: Lift (m) after a side grasp, before carrying the cube to its sign.
 LIFT = 0.06
+#: After the lift, the cube is drawn back (m) to its arm's side of the tower, rising.
+PULL = 0.08
+RISE = 0.04
 #: Clearance (m) between the arms while two plans are merged at the tower: the arm taking the
 #: lower cube closes on it only once the other's fingers have risen this far clear of its own,
 #: i.e. once the cube above has been lifted off it.
@@ -126,6 +131,7 @@ RELEASE_STEPS = 12
 SETTLE_STEPS = 8
 
 
+@register_task
 class DivideBlockTower(Task):
     """Divide a four-cube tower of two colours into one two-cube tower per colour.
 
@@ -298,34 +304,44 @@ class DivideBlockTower(Task):
             below = placed[side][-1]
             return stack_target(ctx.model.object_pose(below), scene.object(below).shape, shape)
 
-        def take_and_place(side: str, name: str) -> ArmPlan:
-            """`side` side-grasps `name`, lifts it and sets it on its sign."""
-            target = goal(side, name)
+        def take(side: str, name: str, pull: bool = True) -> ArmPlan:
+            """`side` side-grasps `name`, lifts it and (with `pull`) pulls it out to its own
+            side of the tower."""
             plan = pick(ctx, side, name, lift=LIFT, grasps=_side_grasps(ctx, side, name))
-            stack = bool(placed[side])
-            plan = plan.then(
-                place(ctx, side, target, release_steps=RELEASE_STEPS if stack else None)
-            )
-            placed[side].append(name)
             on_tower.remove(name)
-            return plan
+            return plan.then(_pull_out(ctx, side)) if pull else plan
+
+        def put(side: str, name: str) -> ArmPlan:
+            """`side` sets the `name` it holds on its sign (on the cube there, if any) and
+            goes home."""
+            slow = RELEASE_STEPS if placed[side] else None
+            target = goal(side, name)
+            try:  # the cube turned as it is held: the hand keeps pointing across the table
+                yaw = _yaw(ctx.model.held_pose(side, ctx.q)) - _yaw(target)
+                plan = place(ctx, side, target, release_steps=slow, yaws=[yaw])
+            except PlanningError:
+                plan = place(ctx, side, target, release_steps=slow)
+            placed[side].append(name)
+            return plan.then(retreat(ctx, side))
 
         order = scene.draws["order"]
         for step in _steps(order):
             upper, arm_u, arm_o = CUBES[step.upper], step.upper_arm, step.other_arm
             if step.lower is not None:
-                # the lower cube's arm comes beside it (planned with the upper cube still on
-                # it), then slides in as the upper cube rises and takes it
+                # The lower cube's arm comes beside it (planned with the upper cube still on
+                # it), then slides in as the upper cube rises and takes it. Each arm's next
+                # move is planned where the other will be meanwhile: the upper arm pulls its
+                # cube out to its side while the lower one lifts its own.
                 lower = CUBES[step.lower]
                 come = _approach(ctx, arm_o, lower, above=upper)
-                plans = {arm_u: take_and_place(arm_u, upper)}
-                plans[arm_o] = come.then(take_and_place(arm_o, lower))
-                motion = _take_below(ctx, plans[arm_u], plans[arm_o], (upper, lower))
+                up = take(arm_u, upper)
+                low = come.then(take(arm_o, lower, pull=False))
+                up = up.then(put(arm_u, upper))
+                low = low.then(put(arm_o, lower))
+                motion = _take_below(ctx, up, low, (upper, lower))
             else:
-                plans = {}
-                if step.other == "retreat":  # the leaving arm is planned first
-                    plans[arm_o] = retreat(ctx, arm_o)
-                plans[arm_u] = take_and_place(arm_u, upper)
+                plans = {arm_u: take(arm_u, upper)}
+                plans[arm_u] = plans[arm_u].then(put(arm_u, upper))
                 if step.other == "prepare":  # come beside the cube it takes next
                     k = _next_lower(order, step.upper)
                     plans[arm_o] = _approach(ctx, arm_o, CUBES[k], above=CUBES[k + 1])
@@ -341,7 +357,8 @@ class DivideBlockTower(Task):
 class Step:
     """One merged step of the expert: `upper_arm` takes the cube at level `upper` to its sign;
     with `lower`, the other arm takes the cube below it as it comes free, else the other arm
-    does `other` ('prepare': comes beside the cube it takes next; 'retreat'; 'hold')."""
+    does `other` ('prepare': comes beside the cube it takes next; 'hold'). Each arm goes home
+    after setting its cube down."""
 
     upper: int
     upper_arm: str
@@ -363,11 +380,7 @@ def _steps(order: list[str]) -> list[Step]:
     arms = [ARM[k] for k in order]
     if arms[3] != arms[2]:
         return [Step(3, arms[3], 2), Step(1, arms[1], 0)]
-    return [
-        Step(3, arms[3], other="prepare"),
-        Step(2, arms[2], 1),
-        Step(0, arms[0], other="retreat"),
-    ]
+    return [Step(3, arms[3], other="prepare"), Step(2, arms[2], 1), Step(0, arms[0])]
 
 
 def _next_lower(order: list[str], level: int) -> int:
@@ -498,6 +511,23 @@ def _entering(ctx: SkillContext, plan: ArmPlan) -> int:
     i = _closed_at(plan)
     far = np.linalg.norm(p[: i + 1] - p[i], axis=1) > GraspParams().pregrasp_distance - 0.01
     return int(np.flatnonzero(far)[-1]) if far.any() else 0
+
+
+def _yaw(X: RigidTransform) -> float:
+    R = X.rotation().matrix()
+    return float(np.arctan2(R[1, 0], R[0, 0]))
+
+
+def _pull_out(ctx: SkillContext, side: str) -> ArmPlan:
+    """The held cube drawn straight back PULL (m) along the grasp's approach and up RISE (m),
+    to `side`'s own side of the tower, clear of the other arm working there."""
+    X = ctx.model.tcp_pose(ctx.q, side)
+    away = X.translation() - PULL * X.rotation().col(0) + [0.0, 0.0, RISE]
+    X_out = RigidTransform(X.rotation(), away)
+    try:
+        return move_tcp(ctx, side, X_out, label="pull out", straight=True)
+    except PlanningError:  # the straight joint move sweeps off the line: a planned path
+        return move_tcp(ctx, side, X_out, label="pull out")
 
 
 def _check_tower(view: WorldView, scene: Scene, names: list[str]) -> None:

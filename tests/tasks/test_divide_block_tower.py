@@ -91,7 +91,7 @@ def test_expert_steps_per_order():
     assert [(s.upper, s.upper_arm, s.lower, s.other) for s in steps] == [
         (3, "left", None, "prepare"),
         (2, "left", 1, "hold"),
-        (0, "right", None, "retreat"),
+        (0, "right", None, "hold"),
     ]
     for order in dbt.ORDERS:
         for s in dbt._steps(list(order)):
