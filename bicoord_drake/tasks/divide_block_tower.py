@@ -141,15 +141,20 @@ class DivideBlockTower(Task):
     the right, both near the robot. The cubes are taken off the tower two at a time, top
     first, and each is put on the sign of its colour, the second on the first, so that each
     sign ends with a two-cube tower of its colour. The left arm handles colour A and the right
-    arm colour B, each side-grasping the tower's cubes from its own side (jaws horizontal);
-    a cube below another is grasped as the other arm lifts the one above it off, and pulled
-    up once that one is clear. When the top two cubes differ in colour, both arms take one at
-    once, sort them onto the signs, then take and stack the last two the same way. When they
-    share a colour, that colour's arm takes the top cube to its sign alone (the other arm
-    comes to the tower and waits beside the cube it takes next), then it takes the second
-    while the other arm takes the third, and the other arm finally takes the bottom cube. A
-    cube is never handed over: the arm of its colour reaches every level of the tower from its
-    own side.
+    arm colour B, each side-grasping the tower's cubes from its own side (jaws horizontal).
+    Of the two cubes taken at once, the upper one's arm lifts it and pulls it out to its own
+    side; the other arm waits beside the cube below and slides its fingers in as soon as the
+    upper cube has risen 2.5 cm off it (no earlier, so it never lifts a cube with another on
+    it), then lifts it; each arm sets its cube on its sign and goes home. When the top two
+    cubes differ in colour, both arms take one at once, sort them onto the signs, then take
+    and stack the last two the same way. When they share a colour, that colour's arm takes
+    the top cube to its sign alone (the other arm comes to the tower and waits beside the
+    cube it takes next), then it takes the second while the other arm takes the third, and
+    the other arm finally takes the bottom cube. A cube is never handed over: the arm of its
+    colour reaches every level of the tower from its own side (measured for the whole base
+    range and both cube sizes), so the spec's handover (when R picks an A cube) never arises.
+    After every take the expert checks that the cubes left on the tower moved less than 1 cm
+    (else the episode is dropped: ``tower_disturbed``).
 
     Randomization: the two colours (from six); which two of the four levels hold colour A
     (six towers); each cube's edge in [4, 5] cm, its centre within 3 mm of the base's axis and
