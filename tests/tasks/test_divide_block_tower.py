@@ -314,3 +314,32 @@ def test_expert_divides_the_tower_on_two_seeds(task):
         result = run_expert(task, seed, StationConfig(render=False))
         assert result.success, (seed, result.reason)
         assert len(result.recorder) <= task.step_limit
+
+
+def test_the_lower_cube_is_entered_only_once_the_upper_cube_has_risen(task, monkeypatch):
+    """Planning only (seed 0, A B A B): in each two-arm step the lower cube's fingers move in
+    (and close) only after the upper cube has risen CLEAR_RISE."""
+    scene = task.sample_scene(0)
+    seen = []
+    take_below = dbt._take_below
+
+    def recording(ctx, upper, lower, names):
+        motion = take_below(ctx, upper, lower, names)
+        seen.append((ctx, upper, lower, names, motion))
+        return motion
+
+    class View:
+        def object_transforms(self):
+            return {}
+
+        def object_pose(self, name):
+            return np.r_[scene.object(name).pose.xyz, 1.0, 0.0, 0.0, 0.0]
+
+    monkeypatch.setattr(dbt, "_take_below", recording)
+    actions = list(task.expert(scene, View()))
+    assert 0 < len(actions) <= task.step_limit
+    assert [names for _, _, _, names, _ in seen] == [(C3, C2), (C1, C0)]
+    for ctx, upper, lower, _, motion in seen:
+        delay = motion.info["lower_delay"]
+        assert dbt._entering(ctx, lower) + delay >= dbt._risen(ctx, upper, dbt.CLEAR_RISE)
+        assert dbt._closed_at(lower) + delay > dbt._risen(ctx, upper, dbt.CLEAR_RISE)
