@@ -749,3 +749,67 @@ def tip_in(
         return bool(cav.contains_xy(p) and cav.floor - floor_tol <= p[2] <= cav.rim)
 
     return Predicate(check, f"tip_in({obj!r}, {container!r}, max_tilt={max_tilt:.3g})")
+
+
+# --------------------------------------------------------------------------- latches, places
+class Latched(Predicate):
+    """Stateful: `pred` has held in full at some update since the last reset (see
+    :func:`latched`)."""
+
+    __slots__ = ("_seen", "pred")
+
+    def __init__(self, pred: Callable) -> None:
+        super().__init__(self._check, f"latched({_name(pred)})", (pred,))
+        self.pred = pred
+        self.reset()
+
+    def reset(self) -> None:
+        super().reset()
+        self._seen = False
+
+    def _check(self, s: WorldState) -> bool:
+        if float(self.pred(s)) >= 1.0:
+            self._seen = True
+        return self._seen
+
+
+def latched(pred: Callable) -> Latched:
+    """`pred` held in full at some update of this episode (a cube that has been lifted off a
+    tower stays "taken" while it is carried down). Stateful: the monitor's reset clears it."""
+    return Latched(pred)
+
+
+def near_start(obj: str, tol: float = 0.01) -> Predicate:
+    """The object's centre within `tol` (m, in 3-D) of where it started (a block left in its
+    tower while the one above it is taken away)."""
+
+    def check(s: WorldState) -> bool:
+        return bool(np.linalg.norm(s.position(obj) - s.initial_pose(obj)[:3]) <= tol)
+
+    return Predicate(check, f"near_start({obj!r}, tol={tol})")
+
+
+def within_square(obj: str, center_xy: Sequence[float], half: float, yaw: float = 0.0) -> Predicate:
+    """The object's centre inside the square of half side `half` (m) around `center_xy`, its
+    sides turned by `yaw` (rad) from the world axes (a block on a marked square)."""
+    c = np.array([float(v) for v in center_xy])
+    R = np.array([[math.cos(yaw), math.sin(yaw)], [-math.sin(yaw), math.cos(yaw)]])
+
+    def check(s: WorldState) -> bool:
+        d = R @ (centre(s, obj)[:2] - c)
+        return bool(np.max(np.abs(d)) <= half)
+
+    return Predicate(check, f"within_square({obj!r}, {tuple(c.tolist())}, half={half})")
+
+
+def weighted(preds: Sequence[Callable], weights: Sequence[float]) -> Predicate:
+    """Partial credit with weights: the weighted share of predicates that hold in full (the
+    stage counts at 1), e.g. 0.125 per block on its mark and 0.25 per finished tower."""
+    preds, w = tuple(preds), np.asarray(weights, dtype=float)
+    if len(preds) != len(w) or not len(w) or np.any(w <= 0):
+        raise ValueError("weighted needs one positive weight per predicate")
+    return Predicate(
+        lambda s: float(np.dot([float(p(s)) >= 1.0 for p in preds], w) / w.sum()),
+        f"weighted([{', '.join(_name(p) for p in preds)}], {w.tolist()})",
+        preds,
+    )

@@ -15,6 +15,7 @@ TASK_MODULES: tuple[str, ...] = (
     "build_tower_with_blocks",
     "clean_table",
     "cook",
+    "divide_block_tower",
     "exchange_mics",
     "extract_bottom_block_to_top",
     "fetch_block_with_roller",
