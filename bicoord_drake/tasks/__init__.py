@@ -16,6 +16,7 @@ TASK_MODULES: tuple[str, ...] = (
     "clean_table",
     "cook",
     "exchange_mics",
+    "exchange_pots",
     "handover_block_with_bowls",
     "jigsaw",
     "place_plate_and_cup",
