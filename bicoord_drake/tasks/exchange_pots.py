@@ -97,7 +97,8 @@ class ExchangePots(Task):
     the robot on the left, pot 2 further out on the right. Both hands hold each pot by its two
     handles (horizontal grasps from outside, closing on the same step): they lift pot 1 and
     park it 40 cm toward +x, lift pot 2, carry it raised 20 cm to pot 1's old spot and set it
-    down, then take pot 1 again and move it, low over the table, to pot 2's old spot.
+    down, then take pot 1 again and move it, low over the table, to pot 2's old spot. The
+    expert turns each pot about the vertical while carrying it (see the module docstring).
 
     Randomization: each pot within 3 cm (x and y) of its reference spot, (-0.15, -0.17) and
     (0.15, 0.05); radius 5.5-6.5 cm and height 8.5-10 cm per pot; the colours.
