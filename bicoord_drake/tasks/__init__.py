@@ -17,6 +17,7 @@ TASK_MODULES: tuple[str, ...] = (
     "cook",
     "divide_block_tower",
     "exchange_mics",
+    "exchange_pots",
     "extract_bottom_block_to_top",
     "fetch_block_with_roller",
     "handover_block_with_bowls",

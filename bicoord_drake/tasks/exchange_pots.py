@@ -1,12 +1,22 @@
 """exchange_pots: both hands move two pots by their handles so that they swap places.
 
-Work in progress, not registered: the class carries no ``@register_task`` and the module is
-not in ``TASK_MODULES``, so nothing runs its expert. The scene, the stages (tested on synthetic
-states in ``tests/tasks/test_exchange_pots.py``) and a first expert exist. Planned without
-physics on seeds 0-2, the expert picks pot 1 by its handles, parks it and picks pot 2, but
-carrying pot 2 to pot 1's spot fails (``track_discontinuous``: the bimanual IK changes branch
-on the way, at 10-20 cm height, direct or in x/y legs); on seed 1 the parked pot 1 blocks the
-grasp of pot 2 (``ik_collision``). It has not been run in physics.
+The expert holds each pot by its two lug handles (one hand each, closing and opening on the
+same control steps) and turns it about the vertical while carrying it (a round pot is the same
+pot turned; only its handles move), so that each wrist stays on one IK branch and the hands
+keep clear of the other pot:
+
+- pot 1 is parked turned -30 degrees, so that at the regrasp its left handle faces away from
+  pot 2 (which then stands 40 cm to its left) and the left gripper fits between the pots;
+- pot 2 is picked with the left wrist on its positive-angle branch (``pick_together(...,
+  wrist=)``): the carry ends with the left hand close in front of its own base, which only that
+  branch reaches (on the other one the wrist runs into its -1.87 rad limit and the IK flips
+  branch mid-carry), and it is turned +30 degrees on the way, the right hand's wrist clear of
+  the parked pot 1;
+- pot 1 is turned back by +30 degrees on its way to pot 2's spot.
+
+The pots are 8.5-10 cm tall (the spec gives no size): on a shorter pot the handle sits so low
+that the gripper's side plates, which stand vertical for a grasp of a horizontal handle, touch
+the table.
 """
 
 from __future__ import annotations
@@ -15,7 +25,7 @@ import math
 from collections.abc import Iterator
 
 import numpy as np
-from pydrake.all import RigidTransform
+from pydrake.all import RigidTransform, RotationMatrix
 
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import PotShape, SceneObject
@@ -43,6 +53,7 @@ from bicoord_drake.stages.predicates import (
     within_xy,
 )
 from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.registry import register_task
 
 POT_1, POT_2 = "pot_1", "pot_2"
 POTS = (POT_1, POT_2)
@@ -53,7 +64,7 @@ JITTER = 0.03
 PARK_DX = 0.40
 #: Pot sizes (m) and mass (kg).
 RADIUS = (0.055, 0.065)
-HEIGHT = (0.07, 0.09)
+HEIGHT = (0.085, 0.10)
 POT_MASS = 0.3
 COLORS = {
     "steel": (0.72, 0.74, 0.78, 1.0),
@@ -72,10 +83,13 @@ MAX_TILT = math.radians(15)
 SPEED = 0.8
 LIFT = 0.05
 RAISE = 0.20
+PARK_TURN = math.radians(-30)
+CARRY_TURN = math.radians(30)
 RELEASE_STEPS = 6
 SETTLE_STEPS = 8
 
 
+@register_task
 class ExchangePots(Task):
     """Swap two pots, each carried by both hands holding its two handles.
 
@@ -83,10 +97,11 @@ class ExchangePots(Task):
     the robot on the left, pot 2 further out on the right. Both hands hold each pot by its two
     handles (horizontal grasps from outside, closing on the same step): they lift pot 1 and
     park it 40 cm toward +x, lift pot 2, carry it raised 20 cm to pot 1's old spot and set it
-    down, then take pot 1 again and move it, low over the table, to pot 2's old spot.
+    down, then take pot 1 again and move it, low over the table, to pot 2's old spot. The
+    expert turns each pot about the vertical while carrying it (see the module docstring).
 
     Randomization: each pot within 3 cm (x and y) of its reference spot, (-0.15, -0.17) and
-    (0.15, 0.05); radius 5.5-6.5 cm and height 7-9 cm per pot; the colours.
+    (0.15, 0.05); radius 5.5-6.5 cm and height 8.5-10 cm per pot; the colours.
 
     Stages: (1) pot 1 held by both hands, lifted 3 cm (transient); (2) pot 1 parked: within
     5 cm of its spot 40 cm toward +x, upright on the table, both grippers open and off it
@@ -224,12 +239,15 @@ class ExchangePots(Task):
             ctx.refresh_grasps(poses)
 
 
-def _set_down(ctx: SkillContext, pot: str, xy, *, raise_by: float, label: str) -> Motion:
-    """Carry the pot both hands hold to `raise_by` above `xy`, lower it there, let go together
-    and back off; the pot keeps its orientation."""
+def _set_down(
+    ctx: SkillContext, pot: str, xy, *, raise_by: float, label: str, turn: float = 0.0
+) -> Motion:
+    """Carry the pot both hands hold to `raise_by` above `xy`, turning it `turn` (rad) about
+    the vertical on the way, lower it there, let go together and back off."""
     X = ctx.model.held_pose("left", ctx.q)
-    over = RigidTransform(X.rotation(), [xy[0], xy[1], TABLE_TOP + raise_by])
-    down = RigidTransform(X.rotation(), [xy[0], xy[1], TABLE_TOP + 0.002])
+    R = RotationMatrix.MakeZRotation(turn) @ X.rotation()
+    over = RigidTransform(R, [xy[0], xy[1], TABLE_TOP + raise_by])
+    down = RigidTransform(R, [xy[0], xy[1], TABLE_TOP + 0.002])
     carry = carry_together(ctx, over, label=label)
     lower = carry_together(ctx, down, label=f"set {pot} down", ignore=[pot])
     release = release_together(ctx, ramp_steps=RELEASE_STEPS)
@@ -241,12 +259,12 @@ def plan_stages(ctx: SkillContext, spots: dict) -> Iterator[Motion]:
     measured state after each)."""
     # ---- stages 1-2: both hands lift pot 1 by its handles and park it 40 cm toward +x
     yield pick_together(ctx, POT_1, lift=LIFT)
-    yield _set_down(ctx, POT_1, spots["park"], raise_by=LIFT, label="park pot 1")
+    yield _set_down(ctx, POT_1, spots["park"], raise_by=LIFT, label="park pot 1", turn=PARK_TURN)
     # ---- stages 3-4: lift pot 2 20 cm, carry it to pot 1's spot, set it down
-    yield pick_together(ctx, POT_2, lift=RAISE)
-    yield _set_down(ctx, POT_2, spots[POT_1], raise_by=RAISE, label="carry pot 2")
+    yield pick_together(ctx, POT_2, lift=RAISE, wrist={"left": 1.0})
+    yield _set_down(ctx, POT_2, spots[POT_1], raise_by=RAISE, label="carry pot 2", turn=CARRY_TURN)
     # ---- stages 5-6: take pot 1 again and move it low to pot 2's spot
     yield pick_together(ctx, POT_1, lift=LIFT)
-    yield _set_down(ctx, POT_1, spots[POT_2], raise_by=LIFT, label="move pot 1")
+    yield _set_down(ctx, POT_1, spots[POT_2], raise_by=LIFT, label="move pot 1", turn=-PARK_TURN)
     away = merge(ctx, retreat(ctx, "left"), retreat(ctx, "right"))
     yield away.then(merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS)))

@@ -267,3 +267,60 @@ def test_release_together_backs_off_on_the_branch_the_arms_are_on():
         sl = slice(6 * i, 6 * i + 6)
         assert np.max(np.abs(ctx.q[sl] - q[sl])) < 0.5  # no wrist flip
     assert motion.num_steps > 0
+
+
+def _pot_ctx(xy) -> sk.SkillContext:
+    from bicoord_drake.models.objects import PotShape
+
+    pot = PotShape(radius=0.06, height=0.09)
+    obj = SceneObject(name="pot", shape=pot, mass=0.3, pose=Pose(xyz=(*xy, TABLE_TOP)))
+    return sk.SkillContext(PlanningModel(Scene(name="pot", objects=(obj,))), speed=0.8)
+
+
+def test_the_other_wrist_branch_reaches_the_same_tcp_poses():
+    from bicoord_drake.planning.skills.bimanual import WRIST_ANGLE, on_wrist_branch
+
+    ctx = _pot_ctx((0.15, 0.05))
+    pair = sk.handle_pairs(ctx, "pot")[0]
+    targets = {"left": TcpTarget(pair.left.X_WG), "right": TcpTarget(pair.right.X_WG)}
+    q = ctx.ik.solve(targets, env_clearance=0.0, ignore=["pot"])
+    for side, i in (("left", WRIST_ANGLE), ("right", 6 + WRIST_ANGLE)):
+        sign = -np.sign(q[i])
+        flipped = on_wrist_branch(ctx, q, side, sign)
+        assert np.sign(flipped[i]) == sign and flipped[i] == pytest.approx(-q[i])
+        assert ctx.model.within_limits(flipped)
+        for s in ("left", "right"):
+            dp, da = _pose_error(ctx.model.tcp_pose(q, s), ctx.model.tcp_pose(flipped, s))
+            assert dp < 1e-4 and da < 1e-3
+        assert np.array_equal(on_wrist_branch(ctx, q, side, -sign), q)  # already there
+    # a wrist angle whose negative is beyond the joint limit (-1.87 rad) has no other branch
+    q_bent = q.copy()
+    q_bent[WRIST_ANGLE] = 2.1
+    with pytest.raises(PlanningError) as err:
+        on_wrist_branch(ctx, q_bent, "left", -1.0)
+    assert err.value.reason == "wrist_branch"
+
+
+def test_a_pot_carried_to_the_left_arms_base_needs_the_positive_wrist_branch():
+    """Both hands carry a pot raised 20 cm from (0.15, 0.05) to (-0.15, -0.17): the left hand
+    ends close in front of its own base, where its wrist angle is about +2 rad. Picked on the
+    home-pulled branch (a negative wrist angle) the carry runs the wrist into its -1.87 rad limit
+    and the IK jumps branch; picked with ``wrist={"left": 1}`` it is continuous."""
+    from pydrake.all import RollPitchYaw
+
+    def carry(wrist):
+        ctx = _pot_ctx((0.15, 0.05))
+        sk.pick_together(ctx, "pot", lift=0.2, wrist=wrist)
+        start = ctx.q.copy()
+        R = RotationMatrix(RollPitchYaw(0.0, 0.0, np.radians(30)))
+        goal = RigidTransform(R, [-0.15, -0.17, TABLE_TOP + 0.2])
+        return start, ctx, sk.carry_together(ctx, goal)
+
+    with pytest.raises(PlanningError) as err:
+        carry(None)
+    assert err.value.reason == "track_discontinuous"
+    start, ctx, motion = carry({"left": 1.0})
+    assert start[4] > 0
+    assert np.max(np.abs(np.diff(motion.q, axis=0))) < 0.3
+    X = ctx.model.held_pose("left", ctx.q)
+    assert np.linalg.norm(X.translation()[:2] - [-0.15, -0.17]) < 1e-3

@@ -1,4 +1,4 @@
-"""exchange_pots (not registered yet): seeded scenes and stages on synthetic states."""
+"""exchange_pots: seeded scenes, stages on synthetic states, the plan, (slow) the expert."""
 
 import math
 from dataclasses import replace
@@ -7,8 +7,12 @@ import numpy as np
 import pytest
 
 import bicoord_drake.tasks.exchange_pots as ep
+from bicoord_drake.config import StationConfig
 from bicoord_drake.models.objects import PotShape
 from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.planning.model import PlanningModel
+from bicoord_drake.planning.skills import SkillContext
+from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.stages.predicates import reset_predicate
 from bicoord_drake.tasks.base import check_task_class
@@ -122,3 +126,31 @@ def test_the_swap_without_the_moves_scores_nothing(task, scene):
         monitor.update(replace(done, step=k, time=k / 15))
     monitor.finish(replace(done, step=12, time=12 / 15))
     assert monitor.score() == 0.0
+
+
+def test_the_plan_swaps_the_pots_on_one_wrist_branch_each(task):
+    """Planned without physics: all seven motions plan, pot 2 ends at pot 1's spot turned by
+    CARRY_TURN and pot 1 at pot 2's spot turned back, and no joint jumps between samples."""
+    scene = task.sample_scene(1)
+    spots = task.spots(scene)
+    ctx = SkillContext(PlanningModel(scene), speed=ep.SPEED)
+    motions = list(ep.plan_stages(ctx, spots))
+    assert len(motions) == 7
+    steps = sum(m.num_steps for m in motions)
+    assert steps < task.step_limit - 100
+    for m in motions:
+        assert np.max(np.abs(np.diff(m.q, axis=0)), initial=0.0) < 0.3, m.label
+    for pot, spot, yaw in ((ep.POT_2, ep.POT_1, ep.CARRY_TURN), (ep.POT_1, ep.POT_2, 0.0)):
+        X = ctx.model.object_pose(pot)
+        assert np.linalg.norm(X.translation()[:2] - spots[spot]) < 0.005
+        assert X.translation()[2] == pytest.approx(TABLE_TOP + 0.002, abs=1e-3)
+        x_axis = X.rotation().col(0)
+        assert math.atan2(x_axis[1], x_axis[0]) == pytest.approx(yaw, abs=1e-3)
+
+
+@pytest.mark.slow
+def test_expert_swaps_the_pots_on_two_seeds(task):
+    for seed in (0, 1):
+        result = run_expert(task, seed, StationConfig(render=False))
+        assert result.success, (seed, result.reason)
+        assert len(result.recorder) <= task.step_limit

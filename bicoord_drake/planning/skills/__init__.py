@@ -32,7 +32,8 @@ module                    skills
                           a pot by its two handles: :func:`handle_pairs`),
                           :func:`pick_together`, :func:`grip_together` (same control steps),
                           :func:`track_together` / :func:`carry_together` (the object's path,
-                          both arms by one timing), :func:`release_together`
+                          both arms by one timing), :func:`release_together`,
+                          :func:`on_wrist_branch` (the same TCP pose on the other wrist branch)
 :mod:`.turns`             :func:`arrive_as_leaves` (turn-taking at a shared spot: one arm
                           arrives as the other leaves), :func:`arrival_delay`,
                           :func:`first_step_in_zone`
@@ -63,6 +64,7 @@ from bicoord_drake.planning.skills.bimanual import (
     carry_together,
     grip_together,
     handle_pairs,
+    on_wrist_branch,
     pick_together,
     release_together,
     track_together,
@@ -115,6 +117,7 @@ __all__ = [
     "lift",
     "meet_motion",
     "merge",
+    "on_wrist_branch",
     "move",
     "move_tcp",
     "pick",

@@ -23,7 +23,7 @@ hands (``PlanningModel.attach_both``) between :func:`pick_together` and
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -344,11 +344,15 @@ def pick_together(
     pairs: Sequence[GraspPair] | None = None,
     inset: float = END_INSET,
     kinds: Sequence[str] = ("top",),
+    wrist: Mapping[str, float] | None = None,
 ) -> Motion:
     """Both arms approach object `name` at once, descend onto their grasps (arriving on the
     same step), close on the same step and lift it `lift` (m) straight up, keeping its
-    orientation. `pairs` (best first) replaces :func:`two_hand_grasps`. Afterwards both hands
-    hold it; ``info["grasps"]`` is the pair used. On failure nothing is changed."""
+    orientation. `pairs` (best first) replaces :func:`two_hand_grasps`. `wrist` ({side: +1 or
+    -1}) puts that arm's wrist on the branch whose wrist angle has that sign
+    (:func:`on_wrist_branch`: the same TCP poses), e.g. the branch a later carry needs.
+    Afterwards both hands hold it; ``info["grasps"]`` is the pair used. On failure nothing is
+    changed."""
     from bicoord_drake.planning.motion import plan_path
 
     if any(side in ctx.model.held for side in SIDES):
@@ -368,6 +372,9 @@ def pick_together(
                     ignore=[name],
                     env_clearance=0.0,
                 )
+                for side, sign in (wrist or {}).items():
+                    q_pre = on_wrist_branch(ctx, q_pre, side, sign)
+                    q_grasp = on_wrist_branch(ctx, q_grasp, side, sign)
                 waypoints = plan_path(ctx.model, ctx.q, q_pre, env_clearance=0.0)
                 approach = ctx.motion_of(time_path(waypoints, _limits12(ctx), ctx.dt), "approach")
                 ctx.q = q_pre.copy()
@@ -434,3 +441,27 @@ def release_together(
     motion.label = f"release {name} together"
     motion.info = {"release_index": i}
     return motion
+
+
+#: Indices, within one arm's six joints, of the forearm roll, the wrist angle and the wrist
+#: rotation (the wrist's roll-pitch-roll).
+FOREARM_ROLL, WRIST_ANGLE, WRIST_ROTATE = 3, 4, 5
+
+
+def on_wrist_branch(ctx: SkillContext, q12: np.ndarray, side: str, sign: float) -> np.ndarray:
+    """`q12` with `side`'s wrist angle of sign `sign`: if it has the other sign, the other
+    branch of the same TCP pose (forearm roll and wrist rotation turned half a turn, the wrist
+    angle negated; the wrist parts are symmetric, so the arm's geometry is unchanged). Raises
+    PlanningError("wrist_branch") when that wrist angle or roll is outside the joint limits."""
+    q = np.asarray(q12, dtype=float).copy()
+    base = ARM_SLICES[side].start
+    if q[base + WRIST_ANGLE] * sign >= 0:
+        return q
+    for j in (FOREARM_ROLL, WRIST_ROTATE):
+        i = base + j
+        q[i] -= np.pi if q[i] > 0 else -np.pi
+        q[i] = np.clip(q[i], ctx.model.lower[i], ctx.model.upper[i])  # +-pi is at the limit
+    q[base + WRIST_ANGLE] = -q[base + WRIST_ANGLE]
+    if not ctx.model.within_limits(q):
+        raise PlanningError("wrist_branch", f"the {side} wrist cannot take the other branch")
+    return q
