@@ -47,6 +47,10 @@ CASES: tuple[tuple[str, int], ...] = tuple(
         "place_plate_and_cup",
         "clean_table",
         "build_bridge",
+        "divide_block_tower",
+        "exchange_pots",
+        "extract_bottom_block_to_top",
+        "fetch_block_with_roller",
     )
     for seed in (0, 2)
 )
