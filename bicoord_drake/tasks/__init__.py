@@ -14,6 +14,7 @@ TASK_MODULES: tuple[str, ...] = (
     "build_bridge",
     "build_tower_with_blocks",
     "clean_table",
+    "collect_pens",
     "cook",
     "divide_block_tower",
     "exchange_mics",

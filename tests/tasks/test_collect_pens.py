@@ -32,9 +32,8 @@ def scene(task):
     return task.sample_scene(SEED)
 
 
-def test_task_class_registers_on_import_but_is_not_in_task_modules_yet():
-    """Not in TASK_MODULES until the expert reaches 27/30 (see the module docstring)."""
-    assert "collect_pens" not in TASK_MODULES
+def test_task_is_registered():
+    assert "collect_pens" in TASK_MODULES
     assert isinstance(get_task("collect_pens"), cp.CollectPens)
 
 
