@@ -48,6 +48,11 @@ TABLE_HALF = (0.58, 0.33)
 #: Minimum gap (m) between two distractors.
 GAP = 0.01
 COUNT_RANGE = (2, 8)
+#: No distractor cylinder is drawn with a length within this fraction of its diameter: Drake's
+#: compliant pressure field of such a cylinder has a degenerate tetrahedron at its centre, and
+#: resting on the table it stops the simulation ("Cannot instantiate plane from normal"; a mug
+#: of radius 3.640 cm and height 7.277 cm did, balance_roller randomized seed 10).
+SQUARE_CYLINDER_BAND = 0.02
 
 _COLORS = (
     (0.85, 0.25, 0.2),
@@ -67,14 +72,23 @@ def _block(rng: np.random.Generator) -> tuple[Shape, float]:
     return BoxShape(size=size), size[2] / 2
 
 
+def clear_of_square(radius: float, length: float) -> float:
+    """`length`, moved to (1 + SQUARE_CYLINDER_BAND) diameters if it lies within the band
+    around the diameter (see :data:`SQUARE_CYLINDER_BAND`)."""
+    if abs(length / (2 * radius) - 1.0) < SQUARE_CYLINDER_BAND:
+        return 2 * radius * (1.0 + SQUARE_CYLINDER_BAND)
+    return length
+
+
 def _can(rng: np.random.Generator) -> tuple[Shape, float]:
     r, h = float(rng.uniform(0.025, 0.035)), float(rng.uniform(0.07, 0.11))
+    h = clear_of_square(r, h)
     return CylinderShape(radius=r, length=h), h / 2
 
 
 def _mug(rng: np.random.Generator) -> tuple[Shape, float]:
     r, h = float(rng.uniform(0.03, 0.04)), float(rng.uniform(0.07, 0.09))
-    return MugShape(radius=r, height=h), 0.0
+    return MugShape(radius=r, height=clear_of_square(r, h)), 0.0
 
 
 def _fruit(rng: np.random.Generator) -> tuple[Shape, float]:
@@ -85,6 +99,7 @@ def _fruit(rng: np.random.Generator) -> tuple[Shape, float]:
 def _bottle(rng: np.random.Generator) -> tuple[Shape, float]:
     r, h = float(rng.uniform(0.025, 0.032)), float(rng.uniform(0.1, 0.14))
     neck = 0.35 * h
+    h = neck + clear_of_square(r, h - neck)
     body = Primitive(kind="cylinder", size=(r, h - neck), pose=Pose(xyz=(0, 0, (h - neck) / 2)))
     top = Primitive(
         kind="cylinder", size=(0.4 * r, neck), pose=Pose(xyz=(0, 0, h - neck + neck / 2))
