@@ -26,13 +26,11 @@ from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
     SkillContext,
-    arrive_as_leaves,
     drop_into,
     hold,
     merge,
     move_tcp,
     pick,
-    retreat,
 )
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
@@ -47,6 +45,7 @@ from bicoord_drake.stages.predicates import (
 )
 from bicoord_drake.tasks.base import Task, WorldView
 from bicoord_drake.tasks.registry import register_task
+from bicoord_drake.tasks.turn_taking import alternating_expert, alternating_stages
 
 #: The static bin: 19 x 17 cm outside, 8 cm tall, 6 mm walls, at the spec's spot.
 BIN = BinShape(size=(0.19, 0.17, 0.08), wall=0.006)
@@ -191,18 +190,12 @@ class CleanTable(Task):
 
     # ---------------------------------------------------------------- stages
     def stages(self, scene: Scene) -> list[Stage]:
-        first = scene.draws["first_side"]
-        second = "right" if first == "left" else "left"
-
-        def arms(f: str, s: str) -> dict[str, str]:
-            return {first: f, second: s}
-
-        a = [
-            arms("pick an object", "pick an object"),
-            arms("drop it into the bin", "hold it, stay clear"),
-            arms("pick the next object", "drop it into the bin"),
-            arms("drop it into the bin", "pick the last object"),
-            arms("retreat", "drop the last object into the bin"),
+        subgoals = [
+            ("pick an object", "pick an object"),
+            ("drop it into the bin", "hold it, stay clear"),
+            ("pick the next object", "drop it into the bin"),
+            ("drop it into the bin", "pick the last object"),
+            ("retreat", "drop the last object into the bin"),
         ]
         names = ("both pick", "first drop", "second drop", "third drop", "last drop")
         preds: list[Predicate] = [
@@ -212,23 +205,10 @@ class CleanTable(Task):
             in_bin_count(3),
             all_of(in_bin_count(4), hands_free(OBJECTS), settled(OBJECTS)),
         ]
-        return [
-            Stage(
-                names[k],
-                a[k]["left"],
-                a[k]["right"],
-                0.0 if k == 0 else 0.25,
-                preds[k],
-                "transient" if k == 0 else "persistent",
-            )
-            for k in range(5)
-        ]
+        return alternating_stages(scene.draws["first_side"], subgoals, names, preds)
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        first = scene.draws["first_side"]
-        second = "right" if first == "left" else "left"
-        o1, o2, o3, o4 = OBJECTS
         ctx = SkillContext(PlanningModel(scene))
 
         def run(motion: Motion) -> Iterator[np.ndarray]:
@@ -237,32 +217,18 @@ class CleanTable(Task):
             ctx.sync(ctx.q, object_poses=poses)
             ctx.refresh_grasps(poses)
 
-        def both(plans: dict[str, ArmPlan]) -> Motion:
-            return merge(ctx, plans["left"], plans["right"])
-
-        def turn(leaver: ArmPlan, arriver: ArmPlan) -> Motion:
-            return arrive_as_leaves(
-                ctx, leaver, arriver, BIN_XY, CLEAR_RADIUS, lag_steps=CLEAR_STEPS
-            )
-
-        # ---- stage 1: both arms pick the object nearer the bin on their side
-        plans = {first: _pick(ctx, first, o1)}
-        plans[second] = _pick(ctx, second, o2)
-        yield from run(both(plans))
-        # ---- stage 2: the first arm drops; the other carries its object to a waiting point
-        # beside the bin (planned first: the dropping arm plans around it)
-        plans = {second: _wait(ctx, second)}
-        plans[first] = _drop(ctx, first, 0)
-        yield from run(both(plans))
-        # ---- stage 3: the first arm leaves to pick its other object as the second drops
-        leaver = _pick(ctx, first, o3)
-        yield from run(turn(leaver, _drop(ctx, second, 1)))
-        # ---- stage 4: the second arm leaves to pick its last object as the first drops
-        leaver = _pick(ctx, second, o4)
-        yield from run(turn(leaver, _drop(ctx, first, 2)))
-        # ---- stage 5: the first arm retreats as the second drops the last object
-        leaver = retreat(ctx, first)
-        yield from run(turn(leaver, _drop(ctx, second, 3)))
+        yield from alternating_expert(
+            ctx,
+            run,
+            scene.draws["first_side"],
+            OBJECTS,
+            pick=lambda side, name: _pick(ctx, side, name),
+            put=lambda side, k: _drop(ctx, side, k),
+            wait=lambda side: _wait(ctx, side),
+            spot_xy=BIN_XY,
+            clear_radius=CLEAR_RADIUS,
+            lag_steps=CLEAR_STEPS,
+        )
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 

@@ -26,13 +26,11 @@ from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
     SkillContext,
-    arrive_as_leaves,
     hold,
     merge,
     move_tcp,
     pick,
     place,
-    retreat,
 )
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
@@ -49,6 +47,7 @@ from bicoord_drake.stages.predicates import (
 )
 from bicoord_drake.tasks.base import Task, WorldView
 from bicoord_drake.tasks.registry import register_task
+from bicoord_drake.tasks.turn_taking import alternating_expert, alternating_stages
 
 #: The static pen holder: a straight cup 8 cm across and 10 cm tall, 4 mm walls.
 HOLDER = pen_holder(radius=0.04, height=0.10, wall=0.004)
@@ -223,16 +222,12 @@ class CollectPens(Task):
         first = scene.draws["first_side"]
         second = "right" if first == "left" else "left"
         limit = lean_limit([scene.object(p).shape for p in PENS])
-
-        def arms(f: str, s: str) -> dict[str, str]:
-            return {first: f, second: s}
-
-        a = [
-            arms("pick a pen", "pick a pen"),
-            arms("put it in the holder, tip down", "hold it, stay clear"),
-            arms("pick the next pen", "put it in the holder, tip down"),
-            arms("put it in the holder, tip down", "pick the last pen"),
-            arms("retreat", "put the last pen in the holder"),
+        subgoals = [
+            ("pick a pen", "pick a pen"),
+            ("put it in the holder, tip down", "hold it, stay clear"),
+            ("pick the next pen", "put it in the holder, tip down"),
+            ("put it in the holder, tip down", "pick the last pen"),
+            ("retreat", "put the last pen in the holder"),
         ]
         names = ("both pick", "first pen in", "second pen in", "third pen in", "last pen in")
         preds: list[Predicate] = [
@@ -247,23 +242,10 @@ class CollectPens(Task):
             in_holder_count(3, limit),
             all_of(in_holder_count(4, limit), hands_free(PENS), settled(PENS)),
         ]
-        return [
-            Stage(
-                names[k],
-                a[k]["left"],
-                a[k]["right"],
-                0.0 if k == 0 else 0.25,
-                preds[k],
-                "transient" if k == 0 else "persistent",
-            )
-            for k in range(5)
-        ]
+        return alternating_stages(first, subgoals, names, preds)
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        first = scene.draws["first_side"]
-        second = "right" if first == "left" else "left"
-        p1, p2, p3, p4 = PENS
         ctx = SkillContext(PlanningModel(scene))
 
         def run(motion: Motion) -> Iterator[np.ndarray]:
@@ -272,54 +254,21 @@ class CollectPens(Task):
             ctx.sync(ctx.q, object_poses=poses)
             ctx.refresh_grasps(poses)
 
-        def turn(leaver: ArmPlan, arriver: ArmPlan) -> Motion:
-            try:
-                return arrive_as_leaves(
-                    ctx, leaver, arriver, HOLDER_XY, CLEAR_RADIUS, lag_steps=CLEAR_STEPS
-                )
-            except PlanningError as err:
-                if err.reason != "arm_conflict":
-                    raise
-            # merge's check also holds each arm to its padding from the pens standing in the
-            # holder, which a finger leaving it can graze (each plan kept its own clearance
-            # from them when it was made): check the arms against each other only, and if
-            # no timing keeps them apart, the arriver starts once the leaver is done (the
-            # leaver was planned with the arriver at its start, the arriver with the leaver
-            # at its end).
-            try:
-                return arrive_as_leaves(
-                    ctx,
-                    leaver,
-                    arriver,
-                    HOLDER_XY,
-                    CLEAR_RADIUS,
-                    lag_steps=CLEAR_STEPS,
-                    ignore=PENS,
-                )
-            except PlanningError as err:
-                if err.reason != "arm_conflict":
-                    raise
-            plans = {leaver.side: leaver, arriver.side: arriver.delayed(leaver.num_steps - 1)}
-            return merge(ctx, plans["left"], plans["right"], stretch=False, ignore=PENS)
-
-        # ---- stage 1: both arms pick the pen nearer the holder on their side
-        plans = {first: _pick(ctx, first, p1)}
-        plans[second] = _pick(ctx, second, p2)
-        yield from run(merge(ctx, plans["left"], plans["right"]))
-        # ---- stage 2: the first arm puts its pen in; the other carries its pen beside the
-        # holder (planned first: the first arm plans around it)
-        plans = {second: _wait(ctx, second)}
-        plans[first] = _insert(ctx, first)
-        yield from run(merge(ctx, plans["left"], plans["right"]))
-        # ---- stage 3: the first arm leaves to pick its other pen as the second puts its in
-        leaver = _pick(ctx, first, p3)
-        yield from run(turn(leaver, _insert(ctx, second)))
-        # ---- stage 4: the second arm leaves to pick its last pen as the first puts its in
-        leaver = _pick(ctx, second, p4)
-        yield from run(turn(leaver, _insert(ctx, first)))
-        # ---- stage 5: the first arm retreats as the second puts the last pen in
-        leaver = retreat(ctx, first)
-        yield from run(turn(leaver, _insert(ctx, second)))
+        # take_turn's fallbacks: a finger leaving the holder can graze a pen standing in it
+        # (each plan kept its own clearance from it when it was made)
+        yield from alternating_expert(
+            ctx,
+            run,
+            scene.draws["first_side"],
+            PENS,
+            pick=lambda side, name: _pick(ctx, side, name),
+            put=lambda side, k: _insert(ctx, side),
+            wait=lambda side: _wait(ctx, side),
+            spot_xy=HOLDER_XY,
+            clear_radius=CLEAR_RADIUS,
+            lag_steps=CLEAR_STEPS,
+            ignore=PENS,
+        )
         # ---- both hold still until the pens have come to rest (the last one may still slide
         # down into its lean), then SETTLE_STEPS more
         for _ in range(MAX_SETTLE_CHUNKS):

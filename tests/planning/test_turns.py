@@ -19,6 +19,8 @@ from bicoord_drake.planning.skills import (
     first_step_in_zone,
     move_tcp,
     retreat,
+    take_turn,
+    turns,
 )
 from bicoord_drake.stages.predicates import Cavity, cavity_of
 
@@ -76,6 +78,49 @@ def test_arrive_as_leaves_needs_two_arms(scene):
     plan = _to_bin(ctx, "right")
     with pytest.raises(ValueError, match="both the right arm"):
         arrive_as_leaves(ctx, plan, plan, ct.BIN_XY, RADIUS)
+
+
+def _leave_and_arrive(scene):
+    ctx = SkillContext(PlanningModel(scene))
+    _to_bin(ctx, "right", 0.03)
+    _to_bin(ctx, "left", -0.14)
+    leave = retreat(ctx, "right")
+    return ctx, leave, _to_bin(ctx, "left", -0.03)
+
+
+def test_take_turn_is_arrive_as_leaves_when_the_arms_keep_apart(scene):
+    ctx, leave, arrive = _leave_and_arrive(scene)
+    timed = arrive_as_leaves(ctx, leave, arrive, ct.BIN_XY, RADIUS, lag_steps=LAG)
+    taken = take_turn(ctx, leave, arrive, ct.BIN_XY, RADIUS, lag_steps=LAG)
+    np.testing.assert_array_equal(taken.q, timed.q)
+
+
+def test_take_turn_falls_back_to_one_after_the_other_when_the_arms_conflict(scene, monkeypatch):
+    ctx, leave, arrive = _leave_and_arrive(scene)
+    tried = []
+
+    def conflicting(*args, ignore=(), **kwargs):
+        tried.append(tuple(ignore))
+        raise PlanningError("arm_conflict", "the arms meet")
+
+    monkeypatch.setattr(turns, "arrive_as_leaves", conflicting)
+    motion = take_turn(ctx, leave, arrive, ct.BIN_XY, RADIUS, ignore=("object_1",))
+    assert tried == [(), ("object_1",)]  # first checked against everything, then without it
+    left = motion.q[:, ctx.model.side_slice("left")]
+    done = leave.num_steps - 1
+    assert np.all(left[:done] == left[0])  # the arriver waits until the leaver is done
+    assert np.any(left[done + 1] != left[0])
+
+
+def test_take_turn_passes_other_planning_errors_on(scene, monkeypatch):
+    ctx, leave, arrive = _leave_and_arrive(scene)
+
+    def unreachable(*args, **kwargs):
+        raise PlanningError("ik_infeasible", "out of reach")
+
+    monkeypatch.setattr(turns, "arrive_as_leaves", unreachable)
+    with pytest.raises(PlanningError, match="ik_infeasible"):
+        take_turn(ctx, leave, arrive, ct.BIN_XY, RADIUS, ignore=("object_1",))
 
 
 def _centred_compound(scene):

@@ -35,7 +35,8 @@ module                    skills
                           both arms by one timing), :func:`release_together`,
                           :func:`on_wrist_branch` (the same TCP pose on the other wrist branch)
 :mod:`.turns`             :func:`arrive_as_leaves` (turn-taking at a shared spot: one arm
-                          arrives as the other leaves), :func:`arrival_delay`,
+                          arrives as the other leaves), :func:`take_turn` (the same with
+                          fallbacks when the arms conflict), :func:`arrival_delay`,
                           :func:`first_step_in_zone`
 ========================  ===================================================================
 
@@ -91,7 +92,12 @@ from bicoord_drake.planning.skills.shapes import half_extent
 from bicoord_drake.planning.skills.sliding import pull
 from bicoord_drake.planning.skills.toss import least_spin_velocity, toss
 from bicoord_drake.planning.skills.tracking import push, track
-from bicoord_drake.planning.skills.turns import arrival_delay, arrive_as_leaves, first_step_in_zone
+from bicoord_drake.planning.skills.turns import (
+    arrival_delay,
+    arrive_as_leaves,
+    first_step_in_zone,
+    take_turn,
+)
 
 __all__ = [
     "ArmPlan",
@@ -131,6 +137,7 @@ __all__ = [
     "retreat",
     "solve_tcp",
     "stabilize",
+    "take_turn",
     "tcp_deviation",
     "toss",
     "track",

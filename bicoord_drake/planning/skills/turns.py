@@ -16,6 +16,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
+from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.skills.core import ArmPlan, Motion, SkillContext, merge
 
 
@@ -76,4 +77,35 @@ def arrive_as_leaves(
         raise ValueError(f"leaver and arriver are both the {leaver.side} arm")
     delay = arrival_delay(ctx, leaver, arriver, center_xy, radius, lag_steps)
     plans = {leaver.side: leaver, arriver.side: arriver.delayed(delay)}
+    return merge(ctx, plans["left"], plans["right"], stretch=False, ignore=ignore)
+
+
+def take_turn(
+    ctx: SkillContext,
+    leaver: ArmPlan,
+    arriver: ArmPlan,
+    center_xy: Sequence[float],
+    radius: float,
+    *,
+    lag_steps: int = 3,
+    ignore: Sequence[str] = (),
+) -> Motion:
+    """:func:`arrive_as_leaves`, with fallbacks when merge finds the arms in conflict.
+
+    Merge's check also holds each arm to its padding from every object, and a finger leaving
+    the spot can graze an object just put there (each plan kept its own clearance from it
+    when it was made): with `ignore` (those objects' names) the timing is tried again checking
+    the arms against each other and everything else. If no timing keeps them apart, the
+    arriver starts once the leaver is done (the leaver was planned with the arriver at its
+    start, the arriver with the leaver at its end). Other planning errors propagate."""
+    attempts = [()] + ([tuple(ignore)] if ignore else [])
+    for skip in attempts:
+        try:
+            return arrive_as_leaves(
+                ctx, leaver, arriver, center_xy, radius, lag_steps=lag_steps, ignore=skip
+            )
+        except PlanningError as err:
+            if err.reason != "arm_conflict":
+                raise
+    plans = {leaver.side: leaver, arriver.side: arriver.delayed(leaver.num_steps - 1)}
     return merge(ctx, plans["left"], plans["right"], stretch=False, ignore=ignore)
