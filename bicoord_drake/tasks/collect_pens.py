@@ -1,10 +1,7 @@
 """collect_pens: the two arms take turns standing four pens and markers in a pen holder.
 
-Status: NOT registered (not in ``TASK_MODULES``): the expert kept 25 of seeds 0-29 at
-6ae2fe3 / 25cb969 (below the 27/30 bar; failures: three ``arm_conflict`` in a turn, two
-final pens not in at the end; at ff625d6 seeds 5, 11 and 18 are kept, 15 and 24 still fail,
-but no full 30-seed run was made there); replay and ``--stage k`` not measured yet. See
-benchmarks/bench_task_collect_pens.md.
+Expert success on seeds 0-29: 28/30 at 99c4cea (fails 15: the fourth pen comes to rest on the
+three standing pens; 24: arm_conflict in stage 3). See benchmarks/bench_task_collect_pens.md.
 """
 
 from __future__ import annotations
