@@ -3,8 +3,9 @@
     python benchmarks/bench_appearance.py [--tasks all] [--seeds 16] [--repeats 20] \\
         [--out benchmarks/appearance]
 
-For every task: ``<out>/<task>.jpg``, the first head-camera frame of seeds 0..N-1 randomized
-(appearance, table height, clutter; seen split, the last row from the unseen split), 4 per row.
+For every task: ``<out>/<task>.png``, the first head-camera frame of seeds 0..N-1 randomized
+(appearance, table height, clutter; seen split, the last row from the unseen split), 4 per row,
+as a 256-colour PNG (a third of the size of full colour; fine for looking at layouts).
 Then (unless ``--sheets-only``), on one scene, the median wall time of one frame of the three
 320x240 cameras (arms moving between frames) for: the plain look, randomized, and randomized
 with shadows (``CameraConfig.shadows``).
@@ -37,8 +38,9 @@ def contact_sheet(task: str, seeds: int, out: Path) -> Path:
         scene = get_task(task).sample_scene(seed).randomized(split)
         frames.append(Simulation(build_station(scene, StationConfig())).images()["head_camera"])
     rows = [np.concatenate(frames[i : i + 4], axis=1) for i in range(0, len(frames), 4)]
-    path = out / f"{task}.jpg"
-    Image.fromarray(np.concatenate(rows, axis=0)).save(path, quality=85)
+    path = out / f"{task}.png"
+    sheet = Image.fromarray(np.concatenate(rows, axis=0))
+    sheet.quantize(colors=256, method=Image.Quantize.MEDIANCUT).save(path, optimize=True)
     return path
 
 
