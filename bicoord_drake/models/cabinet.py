@@ -118,7 +118,11 @@ def drawer_shape(dims: CabinetDims = CabinetDims()) -> CompoundShape:
             kind="box",
             size=(dims.bar_thickness, post_len, dims.bar_height),
             pose=Pose(
-                xyz=(hx + s * (dims.bar_length / 2 - dims.bar_thickness / 2), -d / 2 - post_len / 2, hz)
+                xyz=(
+                    hx + s * (dims.bar_length / 2 - dims.bar_thickness / 2),
+                    -d / 2 - post_len / 2,
+                    hz,
+                )
             ),
         )
         for s in (-1.0, 1.0)

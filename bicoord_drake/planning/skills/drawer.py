@@ -17,7 +17,7 @@ import numpy as np
 from pydrake.all import RigidTransform
 
 from bicoord_drake.planning.errors import PlanningError
-from bicoord_drake.planning.grasps import gripper_frame, naturalness, arm_base
+from bicoord_drake.planning.grasps import arm_base, gripper_frame, naturalness
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.skills.arm import grip, move, solve_tcp
 from bicoord_drake.planning.skills.core import ArmPlan, SkillContext
@@ -72,7 +72,9 @@ def grasp_handle(ctx: SkillContext, side: str, name: str, part: int) -> ArmPlan:
             ramp = np.clip(np.arange(approach.num_steps) / ctx.gripper_steps, 0, 1)
             approach.opening = approach.opening + ramp * (opening - approach.opening)
             ctx.opening[side] = opening
-            down = move(ctx, side, q_grasp, label="down on the handle", ignore=[name], straight=True)
+            down = move(
+                ctx, side, q_grasp, label="down on the handle", ignore=[name], straight=True
+            )
             close = grip(ctx, side, 0.0, label="close on the handle")
         except PlanningError as err:
             ctx.q, ctx.opening = saved
@@ -123,7 +125,9 @@ def slide_drawer(
     return plan
 
 
-def let_go_handle(ctx: SkillContext, side: str, name: str, part: int, rise: float = 0.06) -> ArmPlan:
+def let_go_handle(
+    ctx: SkillContext, side: str, name: str, part: int, rise: float = 0.06
+) -> ArmPlan:
     """Open the jaw just clear of the handle bar (a wide jaw would hit the drawer's face) and
     rise straight up `rise` (m). The jaw stays that narrow (in the planning model too) until
     a later grip opens it."""
