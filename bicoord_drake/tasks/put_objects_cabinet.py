@@ -50,8 +50,8 @@ DIMS = CabinetDims(handle_x=0.06)
 CABINET_X, CABINET_Y = (-0.05, 0.05), (0.14, 0.16)
 #: Card boxes lying flat, long side along y (x, y, z, m), light cardboard.
 BOX_SIZE, BOX_MASS = (0.05, 0.08, 0.03), 0.05
-BOX_X = (-0.34, -0.26)
-BOX_Y = ((-0.16, -0.10), (0.0, 0.06))
+BOX_X = (-0.29, -0.24)
+BOX_Y = ((-0.06, -0.02), (0.08, 0.12))
 BOX_YAW = (-0.25, 0.25)
 COLORS = {
     "red": (0.8, 0.2, 0.2, 1.0),
@@ -97,13 +97,13 @@ class PutObjectsCabinet(Task):
 
     Layout: the cabinet (26 x 22 x 9.6 cm outside; the drawer 23 x 20 x 7.5 cm, its handle
     4.5 cm in front) stands at x in [-0.05, 0.05], y about 0.15 as in the reference. The boxes
-    (5 x 8 x 3 cm) lie at x in [-0.34, -0.26] - 2 to 6 cm further left than the reference's
-    [-0.32, -0.20], so that the box left on the table stays clear of the opening drawer and the
-    cabinet's side - one in front (y in [-0.16, -0.10]) and one behind (y in [0, 0.06]), at
-    least 10 cm apart.
+    (5 x 8 x 3 cm) lie at x in [-0.29, -0.24] (within the reference's [-0.32, -0.20], away
+    from its ends: nearer the middle the box would be in the drawer's way, further left the
+    left gripper at home hides it from the head camera), one in front (y in [-0.06, -0.02])
+    and one beside the cabinet (y in [0.08, 0.12]), at least 10 cm apart.
 
     Randomization: the cabinet's x in [-0.05, 0.05] and y in [0.14, 0.16]; each box's x in
-    [-0.34, -0.26], y in its range, yaw +-0.25 rad; the boxes' colours (two different).
+    [-0.29, -0.24], y in its range, yaw +-0.25 rad; the boxes' colours (two different).
 
     Stages: (1) the left hand holds box 1 and the right hand holds the drawer's handle
     (transient, 0); (2) the drawer's joint is out at least 12 cm (transient, 0); (3) the
