@@ -21,6 +21,8 @@ Inside an episode file (T frames, S stages; PRODUCT.md, Data)::
     joint_state/vector               (T, 14)      measured, same layout
     endpose/{left,right}_endpose     (T, 7)       TCP xyz + quaternion wxyz, world
     objects/<name>/pose              (T, 7)
+    joints/<name>/position           (T,)         a sliding object's joint position, m
+                                                  (only scenes with one; optional on read)
     stages/{start,end}               (S,) int64   frames [start, end)
     stages/score                     (S,) float64
     stages/{subgoal,left,right}      (S,) str
@@ -261,6 +263,7 @@ class EpisodeRecorder:
         self._endpose: dict[str, list[np.ndarray]] = {s: [] for s in SIDES}
         self._objects: dict[str, list[np.ndarray]] = {}
         self._plant_state: list[np.ndarray] = []
+        self._joints: dict[str, list[float]] = {}
 
     def __len__(self) -> int:
         return len(self._action)
@@ -292,8 +295,10 @@ class EpisodeRecorder:
         intrinsic_cv: Mapping[str, np.ndarray] | None = None,
         extrinsic_cv: Mapping[str, np.ndarray] | None = None,
         plant_state: np.ndarray | None = None,
+        joint_positions: Mapping[str, float] | None = None,
     ) -> None:
-        """Append one frame. Cameras, objects and plant-state presence must match frame 0."""
+        """Append one frame. Cameras, objects, joints and plant-state presence must match
+        frame 0."""
         images, depth = dict(images or {}), dict(depth or {})
         intrinsic_cv, extrinsic_cv = dict(intrinsic_cv or {}), dict(extrinsic_cv or {})
         first = len(self) == 0
@@ -301,6 +306,7 @@ class EpisodeRecorder:
             self._same(set(images), set(self._rgb), "cameras")
             self._same(set(depth), set(self._depth), "depth cameras")
             self._same(set(object_poses), set(self._objects), "objects")
+            self._same(set(joint_positions or {}), set(self._joints), "joints")
             if (plant_state is None) != (not self._plant_state):
                 raise ValueError("plant_state must be given for every frame or for none")
         for cam in depth:
@@ -319,6 +325,10 @@ class EpisodeRecorder:
             "E": {c: _vec(extrinsic_cv.get(c), (3, 4), f"{c} extrinsic_cv") for c in images},
             "rgb": {c: encode_jpeg(img, self.jpeg_quality) for c, img in images.items()},
             "depth": {c: self._depth_image(c, d) for c, d in depth.items()},
+            "joints": {
+                n: float(_vec(d, (), f"joint position of {n!r}"))
+                for n, d in (joint_positions or {}).items()
+            },
         }
         # all validated: commit the frame
         self._action.append(frame["action"])
@@ -331,6 +341,7 @@ class EpisodeRecorder:
             (self._extrinsic, "E"),
             (self._rgb, "rgb"),
             (self._depth, "depth"),
+            (self._joints, "joints"),
         ):
             for name, value in frame[key].items():
                 store.setdefault(name, []).append(value)
@@ -352,6 +363,7 @@ class EpisodeRecorder:
             intrinsic_cv={c: sim.intrinsic_cv(c) for c in cams},
             extrinsic_cv={c: sim.extrinsic_cv(c) for c in cams},
             plant_state=sim.station.plant.GetPositionsAndVelocities(sim.plant_context),
+            joint_positions=sim.joint_positions(),
         )
 
     @property
@@ -469,6 +481,8 @@ class EpisodeRecorder:
         f.create_group("objects")
         for name, poses in self._objects.items():
             f[f"objects/{name}/pose"] = np.stack(poses)
+        for name, positions in self._joints.items():
+            f[f"joints/{name}/position"] = np.array(positions, dtype=np.float64)
 
     def _write_stages(self, f: h5py.File, rows: list[list]) -> None:
         starts = np.array([int(r[0]) for r in rows], dtype=np.int64)
@@ -505,6 +519,8 @@ class Episode:
     stage_index: np.ndarray
     initial_state: np.ndarray | None = None
     initial_action: np.ndarray | None = None
+    #: (T,) joint position per sliding object (empty for scenes without one, and old files).
+    joints: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def length(self) -> int:
@@ -626,6 +642,7 @@ def read_episode(path: str | Path, images: bool = True) -> Episode:
             stage_index=get("stage_index"),
             initial_state=get("stages/initial_state", optional=True),
             initial_action=get("stages/initial_action", optional=True),
+            joints={n: f[f"joints/{n}/position"][()] for n in f.get("joints", {})},
         )
 
 

@@ -360,6 +360,29 @@ def domed_box(size: tuple[float, float, float], dome_radius: float) -> CompoundS
     )
 
 
+class Slide(BaseModel):
+    """A prismatic joint mounting an object on a fixed `parent` object (a drawer in a
+    cabinet): the object translates along `axis` (the parent's frame) from its scene pose,
+    which is joint position 0, between `lower` and `upper` (m), with viscous `damping`
+    (N s/m)."""
+
+    model_config = ConfigDict(frozen=True)
+
+    parent: str
+    axis: tuple[float, float, float] = Field(description="unit direction in the parent frame")
+    lower: float = 0.0
+    upper: float = Field(gt=0)
+    damping: float = Field(0.0, ge=0)
+
+    @model_validator(mode="after")
+    def _valid(self) -> Slide:
+        if not np.isclose(np.linalg.norm(self.axis), 1.0, atol=1e-6):
+            raise ValueError(f"slide axis {self.axis} must be a unit vector")
+        if not self.lower <= 0.0 < self.upper:
+            raise ValueError(f"slide limits [{self.lower}, {self.upper}] must contain 0")
+        return self
+
+
 class SceneObject(BaseModel):
     """One object of a scene: its shape, look, mass and initial pose (object frame in world)."""
 
@@ -384,6 +407,9 @@ class SceneObject(BaseModel):
         False,
         description="the colour is part of what the object is (a red stove, a bread roll): "
         "randomized scenes keep it",
+    )
+    slide: Slide | None = Field(
+        None, description="mounted on a prismatic joint to a fixed object (None: free or fixed)"
     )
 
 

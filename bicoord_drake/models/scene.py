@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from bicoord_drake.models.appearance import (
@@ -46,7 +47,30 @@ class Scene(BaseModel):
         dup = {n for n in names if names.count(n) > 1}
         if dup:
             raise ValueError(f"duplicate object names in scene: {sorted(dup)}")
+        fixed_before: set[str] = set()
+        for o in self.objects:
+            if o.slide is not None and (o.fixed or o.slide.parent not in fixed_before):
+                raise ValueError(
+                    f"{o.name!r} slides on {o.slide.parent!r}: it must not be fixed, and its "
+                    "parent must be a fixed object listed before it"
+                )
+            if o.fixed:
+                fixed_before.add(o.name)
         return self
+
+    @property
+    def sliding_objects(self) -> list[SceneObject]:
+        """Objects on a prismatic joint (drawers), in scene order."""
+        return [o for o in self.objects if o.slide is not None]
+
+    def slide_axis(self, name: str) -> np.ndarray:
+        """World direction (3,) in which the sliding object `name` moves as its joint opens
+        (its parent is fixed, so this never changes)."""
+        slide = self.object(name).slide
+        if slide is None:
+            raise ValueError(f"object {name!r} is not on a slide joint")
+        R_WP = self.object(slide.parent).pose.matrix()[:3, :3]
+        return R_WP @ np.asarray(slide.axis, dtype=float)
 
     def randomized(self, split: Split = "seen") -> Scene:
         """This scene randomized from its seed: the appearance of `split` (textures from that

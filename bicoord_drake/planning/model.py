@@ -270,6 +270,23 @@ class PlanningModel:
         self._object_poses[name] = X_WO
         self._refresh_anchor(name)
 
+    def set_slide(self, name: str, position: float) -> None:
+        """Put a sliding object (a drawer) at joint `position` (m from its scene pose, clipped
+        to its limits): its obstacle moves along the slide axis, so checks see it there."""
+        slide = self.object(name).slide
+        if slide is None:
+            raise ValueError(f"object {name!r} is not on a slide joint")
+        d = float(np.clip(position, slide.lower, slide.upper))
+        X_0 = rigid_transform(self.object(name).pose)
+        shift = self.scene.slide_axis(name) * d
+        self.set_object_pose(name, RigidTransform(X_0.rotation(), X_0.translation() + shift))
+
+    def slide_position(self, name: str) -> float:
+        """The joint position of a sliding object where the model has it now (m)."""
+        X_0 = rigid_transform(self.object(name).pose)
+        offset = self.object_pose(name).translation() - X_0.translation()
+        return float(offset @ self.scene.slide_axis(name))
+
     def holders(self, name: str) -> list[str]:
         """The sides whose grippers hold `name` (both for a two-handed hold), left first."""
         return [side for side in SIDES if side in self._held and self._held[side].name == name]

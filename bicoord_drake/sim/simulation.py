@@ -125,6 +125,11 @@ class Simulation:
         flat = np.array(self._eval("object_poses"))
         return {name: flat[7 * i : 7 * i + 7] for i, name in enumerate(self.station.object_bodies)}
 
+    def joint_positions(self) -> dict[str, float]:
+        """Each sliding object's joint position (m from its scene pose; a drawer's opening)."""
+        ctx = self.plant_context
+        return {name: float(j.get_translation(ctx)) for name, j in self.station.slides.items()}
+
     def contact_pairs(self) -> set[tuple[int, int]]:
         """Body-index pairs (sorted) in contact now, from point and hydroelastic contact."""
         st = self.station

@@ -20,16 +20,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+import numpy as np
 from pydrake.all import (
     AddMultibodyPlant,
     Diagram,
     DiagramBuilder,
+    FixedOffsetFrame,
     JointActuatorIndex,
     ModelInstanceIndex,
     MultibodyPlant,
     MultibodyPlantConfig,
     Parser,
     PdControllerGains,
+    PrismaticJoint,
     RigidTransform,
     RollPitchYaw,
     SceneGraph,
@@ -60,6 +63,8 @@ class Station:
     object_bodies: dict[str, object]
     interpolator: ActionInterpolator
     cameras: dict[str, CameraMount] = field(default_factory=dict)
+    #: The prismatic joint of each sliding scene object (a drawer), by object name.
+    slides: dict[str, PrismaticJoint] = field(default_factory=dict)
 
     @property
     def camera_names(self) -> list[str]:
@@ -88,7 +93,8 @@ def add_robot(plant: MultibodyPlant, embodiment: Embodiment) -> dict[str, ModelI
 
 
 def add_scene_objects(plant: MultibodyPlant, scene: Scene) -> dict[str, object]:
-    """Parse every scene object; weld fixtures, give free objects their initial pose."""
+    """Parse every scene object; weld fixtures, mount sliding objects on their prismatic
+    joint (:func:`add_slide`), give free objects their initial pose."""
     bodies = {}
     for obj in scene.objects:
         (inst,) = Parser(plant).AddModelsFromString(object_sdf(obj), "sdf")
@@ -96,10 +102,41 @@ def add_scene_objects(plant: MultibodyPlant, scene: Scene) -> dict[str, object]:
         X_WO = rigid_transform(obj.pose)
         if obj.fixed:
             plant.WeldFrames(plant.world_frame(), body.body_frame(), X_WO)
+        elif obj.slide is not None:
+            add_slide(plant, scene, obj, bodies[obj.slide.parent], body)
         else:
             plant.SetDefaultFloatingBaseBodyPose(body, X_WO)
         bodies[obj.name] = body
     return bodies
+
+
+def add_slide(plant: MultibodyPlant, scene: Scene, obj, parent, body) -> PrismaticJoint:
+    """The prismatic joint ``<name>_slide`` of a sliding object: its frame on the parent is
+    the object's scene pose (joint position 0), the axis, limits and damping its ``Slide``'s.
+    Drake filters contact between the two bodies (jointed bodies do not collide)."""
+    slide = obj.slide
+    X_WP = rigid_transform(scene.object(slide.parent).pose)
+    X_PJ = X_WP.inverse() @ rigid_transform(obj.pose)
+    frame = plant.AddFrame(FixedOffsetFrame(f"{obj.name}_slide_frame", parent.body_frame(), X_PJ))
+    axis_J = X_PJ.rotation().inverse() @ np.asarray(slide.axis, dtype=float)
+    joint = plant.AddJoint(
+        PrismaticJoint(
+            f"{obj.name}_slide",
+            frame,
+            body.body_frame(),
+            axis_J,
+            slide.lower,
+            slide.upper,
+            slide.damping,
+        )
+    )
+    joint.set_default_translation(0.0)
+    return joint
+
+
+def slide_joints(plant: MultibodyPlant, scene: Scene) -> dict[str, PrismaticJoint]:
+    """The prismatic joint of each sliding object of `scene` in a finalized `plant`."""
+    return {o.name: plant.GetJointByName(f"{o.name}_slide") for o in scene.sliding_objects}
 
 
 def build_control_plant(embodiment: Embodiment) -> tuple[MultibodyPlant, dict]:
@@ -211,4 +248,5 @@ def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
         object_bodies=object_bodies,
         interpolator=interpolator,
         cameras=mounts,
+        slides=slide_joints(plant, scene),
     )

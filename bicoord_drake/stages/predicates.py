@@ -813,3 +813,22 @@ def weighted(preds: Sequence[Callable], weights: Sequence[float]) -> Predicate:
         f"weighted([{', '.join(_name(p) for p in preds)}], {w.tolist()})",
         preds,
     )
+
+
+def slid_open(obj: str, distance: float) -> Predicate:
+    """A sliding object (a drawer) is out at least `distance` (m) along its slide: its
+    measured joint position (``WorldState.joint_position``), not its pose alone."""
+
+    def check(s: WorldState) -> bool:
+        return bool(s.joint_position(obj) >= distance)
+
+    return Predicate(check, f"slid_open({obj!r}, {distance})")
+
+
+def slid_closed(obj: str, tol: float) -> Predicate:
+    """A sliding object (a drawer) is within `tol` (m) of closed (joint position 0)."""
+
+    def check(s: WorldState) -> bool:
+        return bool(s.joint_position(obj) <= tol)
+
+    return Predicate(check, f"slid_closed({obj!r}, {tol})")

@@ -87,7 +87,9 @@ class WorldState:
     ``joint_state`` and ``action``: 14-dim [left q(6), left opening, right q(6), right opening];
     ``action`` is the command in effect (opening 1 = open). ``contacts``: object -> sides whose
     fingers touch it. ``object_velocities``: object -> (6,) [v_xyz, w_xyz] in world (may be empty
-    for synthetic states). ``scene`` gives initial poses and shapes (sizes) of the objects.
+    for synthetic states). ``joint_positions``: sliding object (a drawer) -> its prismatic
+    joint's position, m from its scene pose. ``scene`` gives initial poses and shapes (sizes)
+    of the objects.
     """
 
     scene: Scene
@@ -99,6 +101,7 @@ class WorldState:
     action: np.ndarray = field(default_factory=lambda: _open_action())
     contacts: Mapping[str, frozenset[str]] = field(default_factory=dict)
     object_velocities: Mapping[str, np.ndarray] = field(default_factory=dict)
+    joint_positions: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         poses = {n: _frozen_array(p, (7,), f"pose of {n!r}") for n, p in self.object_poses.items()}
@@ -113,6 +116,8 @@ class WorldState:
         set_(self, "tcp_poses", MappingProxyType(tcps))
         set_(self, "object_velocities", MappingProxyType(vels))
         set_(self, "contacts", MappingProxyType(contacts))
+        joints = {n: float(d) for n, d in self.joint_positions.items()}
+        set_(self, "joint_positions", MappingProxyType(joints))
         set_(self, "joint_state", _frozen_array(self.joint_state, (14,), "joint_state"))
         set_(self, "action", _frozen_array(self.action, (14,), "action"))
 
@@ -123,6 +128,7 @@ class WorldState:
         fields: dict[str, Any] = {
             "object_poses": {o.name: pose_vector(o.pose) for o in scene.objects},
             "object_velocities": {o.name: np.zeros(6) for o in scene.objects},
+            "joint_positions": {o.name: 0.0 for o in scene.sliding_objects},
         }
         fields.update(overrides)
         return cls(scene=scene, **fields)
@@ -150,6 +156,7 @@ class WorldState:
             action=np.asarray(action, dtype=float),
             contacts=sim.finger_contacts(),
             object_velocities=velocities,
+            joint_positions=sim.joint_positions(),
         )
 
     def with_velocities_from(self, previous: WorldState) -> WorldState:
@@ -202,6 +209,16 @@ class WorldState:
 
     def shape(self, name: str) -> Shape:
         return self.scene.object(name).shape
+
+    def joint_position(self, name: str) -> float:
+        """The slide joint position of a sliding object (m; a drawer's opening)."""
+        try:
+            return self.joint_positions[name]
+        except KeyError:
+            raise KeyError(
+                f"no joint position for {name!r} in world state; sliding objects: "
+                f"{sorted(self.joint_positions)}"
+            ) from None
 
     def opening(self, side: str) -> float:
         """Commanded gripper opening of one arm (1 = open)."""

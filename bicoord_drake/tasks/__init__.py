@@ -24,6 +24,7 @@ TASK_MODULES: tuple[str, ...] = (
     "handover_block_with_bowls",
     "jigsaw",
     "place_plate_and_cup",
+    "put_objects_cabinet",
     "stack_bowls",
 )
 

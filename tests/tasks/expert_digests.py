@@ -53,6 +53,7 @@ CASES: tuple[tuple[str, int], ...] = tuple(
         "exchange_pots",
         "extract_bottom_block_to_top",
         "fetch_block_with_roller",
+        "put_objects_cabinet",
     )
     for seed in (0, 2)
 )

@@ -34,6 +34,9 @@ module                    skills
                           :func:`track_together` / :func:`carry_together` (the object's path,
                           both arms by one timing), :func:`release_together`,
                           :func:`on_wrist_branch` (the same TCP pose on the other wrist branch)
+:mod:`.drawer`            :func:`grasp_handle`, :func:`slide_drawer` (the TCP along a
+                          drawer's slide axis; the model's drawer follows),
+                          :func:`let_go_handle`
 :mod:`.turns`             :func:`arrive_as_leaves` (turn-taking at a shared spot: one arm
                           arrives as the other leaves), :func:`take_turn` (the same with
                           fallbacks when the arms conflict), :func:`arrival_delay`,
