@@ -18,6 +18,7 @@ from bicoord_drake.planning.grasps import (
     GraspParams,
     arm_base,
     box_grasps,
+    gripper_frame,
     place_candidates,
 )
 from bicoord_drake.planning.ik import TcpTarget
@@ -29,6 +30,7 @@ from bicoord_drake.planning.skills import (
     handover,
     hold,
     merge,
+    move_tcp,
     pick,
     place,
     retreat,
@@ -95,6 +97,8 @@ MEET_YAWS = tuple(np.radians(np.arange(0, 360, 30)))
 #: At the meeting the left's approach points this much along +x at least (cosine).
 MIN_INWARD = 0.4
 LIFT = 0.08
+#: Where the right arm's TCP waits (gripper down) while the left picks the first cuboid.
+WAIT = (0.06, -0.10, TABLE_TOP + 0.32)
 #: How far (m) the left backs off along its approach once it let go at the handover.
 BACK_OFF = 0.10
 #: Control steps over which the right gripper lets go of a standing cuboid.
@@ -204,7 +208,7 @@ class MatchBlocksWithSigns(Task):
                 Stage(
                     f"pick the {_cm(i)} block",
                     f"pick the {_cm(i)} block near one end, lift it",
-                    "wait" if k == 0 else "finish standing the last block up, come back",
+                    "come above the meeting" if k == 0 else "stand the last block up, come back",
                     0.0,
                     all_of(held_by(name, "left"), lifted(name, 0.04)),
                     "transient",
@@ -267,7 +271,8 @@ class MatchBlocksWithSigns(Task):
             ctx.refresh_grasps(poses)
 
         with narrow_jaw(ctx, order[0]):
-            motion = merge(ctx, pick_near_end(ctx, order[0]), None)
+            left = pick_near_end(ctx, order[0])
+            motion = merge(ctx, left, come_to_wait(ctx))
         yield from run(motion)
         for k, name in enumerate(order):
             # L stands the cuboid up and meets R, whose grasp is one it can stand it up with
@@ -459,6 +464,16 @@ def handover_to_stand(ctx: SkillContext, name: str, square_xy: Sequence[float]) 
         except PlanningError as err:
             reasons.append(str(err))
     raise PlanningError("handover_failed", f"no handover of {name!r} ({', '.join(reasons)})")
+
+
+def come_to_wait(ctx: SkillContext) -> ArmPlan | None:
+    """The right arm comes above the meeting, gripper down, to wait for the first cuboid
+    (None if that pose is out of reach: it then waits at home)."""
+    X = gripper_frame(np.array([0.0, 0.0, -1.0]), np.array([1.0, 0.0, 0.0]), np.array(WAIT))
+    try:
+        return move_tcp(ctx, "right", X, label="come above the meeting")
+    except PlanningError:
+        return None
 
 
 def stand_up(ctx: SkillContext, name: str, square_xy: Sequence[float]) -> ArmPlan:
