@@ -832,3 +832,31 @@ def slid_closed(obj: str, tol: float) -> Predicate:
         return bool(s.joint_position(obj) <= tol)
 
     return Predicate(check, f"slid_closed({obj!r}, {tol})")
+
+
+def stands_upright_at(
+    obj: str,
+    center_xy: Sequence[float],
+    tol: float = 0.03,
+    *,
+    axis: str = "z",
+    max_tilt: float = math.radians(15),
+    z_tol: float = 0.01,
+) -> Predicate:
+    """`obj` stands on the table on an end: its `axis` (a long cuboid's length) within
+    `max_tilt` of vertical, its lowest corner at the table top, its centre within `tol` (m,
+    xy) of `center_xy`, no finger touching it (the other gripper may hold something else) and
+    at rest. A lying, toppled, leaning, hovering or still-held object, or one beside the
+    point, does not count."""
+    parts = (
+        upright(obj, max_tilt, axis),
+        on_table(obj, z_tol),
+        within_xy(obj, center_xy, tol),
+        untouched(obj),
+        at_rest(obj),
+    )
+    return Predicate(
+        lambda s: all(float(p(s)) >= 1.0 for p in parts),
+        f"stands_upright_at({obj!r}, {tuple(float(v) for v in center_xy)}, tol={tol})",
+        parts,
+    )

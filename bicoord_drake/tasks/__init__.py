@@ -23,6 +23,7 @@ TASK_MODULES: tuple[str, ...] = (
     "fetch_block_with_roller",
     "handover_block_with_bowls",
     "jigsaw",
+    "match_blocks_with_signs",
     "place_plate_and_cup",
     "put_objects_cabinet",
     "stack_bowls",

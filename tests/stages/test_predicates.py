@@ -344,3 +344,42 @@ def test_footprint_gap_measures_the_separation_of_convex_polygons():
     # the diamond's nearest vertex (2.5, 1.5) lies beside the square's corner: apart along a
     # diagonal normal, which only the diamond's edges provide
     assert P.footprint_gap(square, diamond) == pytest.approx(np.sqrt(2))
+
+
+def _long_scene() -> Scene:
+    """A 5 x 5 x 12 cm cuboid (long axis = its z), lying along y at the start."""
+    bar = SceneObject(
+        name="bar",
+        shape=BoxShape(size=(0.05, 0.05, 0.12)),
+        pose=Pose(xyz=(0.0, 0.0, TABLE_TOP + 0.025), rpy=(math.pi / 2, 0.0, 0.0)),
+    )
+    return Scene(name="synthetic_long", seed=0, objects=(bar,))
+
+
+def test_stands_upright_at_needs_an_end_down_on_the_spot_untouched_and_still():
+    sc = _long_scene()
+    spot = (0.15, 0.03)
+    standing = pose(0.15, 0.03, TABLE_TOP + 0.06)
+    pred = P.stands_upright_at("bar", spot, 0.03)
+    assert not pred(state(sc))  # lying where it started
+    assert pred(state(sc, poses={"bar": standing}))
+    # upside down is still standing on an end; 10 deg of lean is within 15 deg
+    flipped = pose(0.15, 0.03, TABLE_TOP + 0.06, quat_about("x", math.pi))
+    assert pred(state(sc, poses={"bar": flipped}))
+    lean = pose(0.15, 0.03, TABLE_TOP + 0.061, quat_about("y", math.radians(10)))
+    assert pred(state(sc, poses={"bar": lean}))
+    # toppled (leaning 30 deg on a neighbour) or lying on the spot
+    toppled = pose(0.15, 0.03, TABLE_TOP + 0.06, quat_about("y", math.radians(30)))
+    assert not pred(state(sc, poses={"bar": toppled}))
+    lying = pose(0.15, 0.03, TABLE_TOP + 0.025, quat_about("x", math.pi / 2))
+    assert not pred(state(sc, poses={"bar": lying}))
+    # beside the spot (3.5 cm off), held up in the air, still held, still moving
+    assert not pred(state(sc, poses={"bar": pose(0.15, 0.065, TABLE_TOP + 0.06)}))
+    assert pred(state(sc, poses={"bar": pose(0.15, 0.055, TABLE_TOP + 0.06)}))
+    assert not pred(state(sc, poses={"bar": pose(0.15, 0.03, TABLE_TOP + 0.09)}))
+    held = state(sc, poses={"bar": standing}, openings=(1.0, 0.0), contacts={"bar": {"right"}})
+    assert not pred(held)
+    other_hand_busy = state(sc, poses={"bar": standing}, openings=(0.0, 1.0))
+    assert pred(other_hand_busy)
+    moving = state(sc, poses={"bar": standing}, velocities={"bar": [0, 0, 0, 0.5, 0, 0]})
+    assert not pred(moving)

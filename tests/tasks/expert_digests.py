@@ -54,6 +54,7 @@ CASES: tuple[tuple[str, int], ...] = tuple(
         "extract_bottom_block_to_top",
         "fetch_block_with_roller",
         "put_objects_cabinet",
+        "match_blocks_with_signs",
     )
     for seed in (0, 2)
 )
