@@ -24,6 +24,7 @@ TASK_MODULES: tuple[str, ...] = (
     "jigsaw",
     "place_plate_and_cup",
     "stack_bowls",
+    "sweep_block",
 )
 
 for _module in TASK_MODULES:
