@@ -51,9 +51,10 @@ from bicoord_drake.tasks.registry import register_task
 
 PEDESTAL, CUBE, PAN, BRUSH, BIN = "pedestal", "cube", "dustpan", "brush", "bin"
 #: The pedestal: a fixed white block, 8 cm (x) by 10 cm (y), 10 cm tall, its centre at
-#: x = PEDESTAL_X and y drawn from PEDESTAL_Y.
+#: x = PEDESTAL_X and y drawn from PEDESTAL_Y (the reference's [0, 0.1] shifted 5 cm toward
+#: the robot: see the class doc).
 PEDESTAL_SIZE = (0.08, 0.10, 0.10)
-PEDESTAL_X, PEDESTAL_Y = -0.05, (-0.04, 0.06)
+PEDESTAL_X, PEDESTAL_Y = -0.05, (-0.05, 0.05)
 PEDESTAL_TOP = TABLE_TOP + PEDESTAL_SIZE[2]
 #: Its left face: the edge the dustpan is held against.
 EDGE_X = PEDESTAL_X - PEDESTAL_SIZE[0] / 2
@@ -102,7 +103,7 @@ BIN_XY = (-0.44, -0.04)
 BIN_COLOR = (0.3, 0.3, 0.32, 1.0)
 #: Grasps: the dustpan's handle this far (m) behind the back wall, the brush's handle this far
 #: in front of the head's back; fingertips at least TIP_CLEARANCE above the support.
-PAN_GRIP, BRUSH_GRIP = 0.018, 0.035
+PAN_GRIP, BRUSH_GRIP = 0.018, 0.06
 TIP_CLEARANCE = 0.005
 #: Expert: joint speed scale, lift after the picks (m).
 SPEED = 0.5
@@ -113,7 +114,7 @@ GAP, DROP = 0.006, 0.006
 #: The sweep: bristles this high above the pedestal's top, lowered from APPROACH above onto
 #: the start (the bristles START_GAP behind the cube), along -x until the bristles' front is
 #: SWEEP_PAST beyond the pedestal's edge (over the pan); slower than the other moves.
-BRISTLE_GAP, APPROACH, START_GAP, SWEEP_PAST = 0.003, 0.04, 0.012, 0.035
+BRISTLE_GAP, APPROACH, START_GAP, SWEEP_PAST = 0.003, 0.04, 0.012, 0.025
 SWEEP_SPEED = 0.35
 #: After the sweep the brush goes up APPROACH and back toward +x by BACK_OFF (m).
 BACK_OFF = 0.04
@@ -142,17 +143,23 @@ class SweepBlock(Task):
     level with its front edge against the pedestal's left face, its floor just below the
     pedestal's top, while the right lowers the brush behind the cube and sweeps it across
     the top, off the edge, into the pan. Then the right lifts the brush away and goes back
-    while the left carries the pan over the bin, turns its mouth away from the robot and
-    tips it until the cube slides out into the bin.
+    while the left carries the pan to the bin, turning it half around on the way so its
+    mouth faces the bin, and tips it forward about its front edge (held over the bin) until
+    the cube slides out into the bin.
 
     Layout: the reference's bin stands on the floor beside the table on the left, out of
-    reach of our ViperX arms (0.75 m below their bases); here it is a low bin (16x15x7 cm)
-    on the table's left end at (-0.36, 0.18). The pedestal is 8x10 cm and 10 cm tall at
-    x = -0.05 as in the reference.
+    reach of our ViperX arms (0.75 m below their bases); here it is a low bin (14x14x7 cm)
+    on the table's left end at (-0.44, -0.04), beyond the dustpan's handle. The pedestal is
+    8x10 cm and 10 cm tall at x = -0.05 as in the reference, but its y is drawn from
+    [-0.05, 0.05] instead of [0, 0.1]: with the cube beyond y = 0.06 the right arm, sweeping
+    it off the pedestal's left side, is past its reach. The dustpan starts at the spec's x
+    and y in [-0.22, -0.17], clear of the bin. The dustpan is held with its front edge
+    6 mm from the pedestal's face (planning keeps a held object that far from fixtures) and
+    its floor 6 mm below the pedestal's top: the cube drops onto it.
 
-    Randomization: the pedestal's y in [0, 0.1]; the cube's offset from the pedestal's top
+    Randomization: the pedestal's y in [-0.05, 0.05]; the cube's offset from the pedestal's top
     centre +-1 cm in x and y, its yaw +-0.2 rad and colour; the dustpan's centre at x in
-    [-0.3, -0.2], y in [-0.2, -0.13] and its colour; the brush's head at x in [0.2, 0.25],
+    [-0.3, -0.2], y in [-0.22, -0.17] and its colour; the brush's head at x in [0.2, 0.25],
     y in [-0.2, -0.13] and its wood; both tools turned +-0.15 rad.
 
     Stages: (1) both tools held: the dustpan by a closed left gripper, the brush by a closed
