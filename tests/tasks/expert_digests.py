@@ -51,6 +51,7 @@ CASES: tuple[tuple[str, int], ...] = tuple(
         "exchange_pots",
         "extract_bottom_block_to_top",
         "fetch_block_with_roller",
+        "sweep_block",
     )
     for seed in (0, 2)
 )
