@@ -24,6 +24,7 @@ from bicoord_drake.models.geometry import (
     sdf_mesh_visual,
 )
 from bicoord_drake.models.pens import PenShape
+from bicoord_drake.models.tools import ToolShape
 
 
 class _Shape(BaseModel):
@@ -295,7 +296,8 @@ Shape = Annotated[
     | PotShape
     | CompoundShape
     | MugShape
-    | PenShape,
+    | PenShape
+    | ToolShape,
     Field(discriminator="kind"),
 ]
 

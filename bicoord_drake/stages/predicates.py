@@ -30,6 +30,7 @@ from bicoord_drake.models.objects import (
     SphereShape,
 )
 from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.models.tools import DustpanCavity
 from bicoord_drake.stages.stage import GRIPPER_INDEX, WorldState
 
 #: A gripper commanded at or above this opening counts as open, below it as closed.
@@ -860,3 +861,36 @@ def stands_upright_at(
         f"stands_upright_at({obj!r}, {tuple(float(v) for v in center_xy)}, tol={tol})",
         parts,
     )
+
+
+def in_pan(
+    obj: str,
+    pan: str,
+    cavity: DustpanCavity,
+    *,
+    margin: float = 0.003,
+    rest_gap: float = 0.008,
+    max_tilt: float = math.radians(30),
+) -> Predicate:
+    """`obj` lies in a dustpan (:func:`~bicoord_drake.models.tools.dustpan_cavity`): judged in
+    the pan's frame, the pan within `max_tilt` of level, every point of the object's real
+    solid within the pan's walls and front edge (`margin` of slack) and below the side walls'
+    top, and its lowest point on the floor (no more than `rest_gap` above it, and not below
+    it): resting on the pan, not on the pedestal beside it, not hanging over the front edge,
+    not held up in the air over the pan."""
+
+    def check(s: WorldState) -> bool:
+        if tilt(s, pan) > max_tilt:
+            return False
+        pts = (world_hull_points(s, obj) - s.position(pan)) @ s.rotation(pan)
+        x0, x1 = cavity.x_range
+        lowest = float(pts[:, 2].min())
+        return bool(
+            pts[:, 0].min() >= x0 - margin
+            and pts[:, 0].max() <= x1 + margin
+            and np.abs(pts[:, 1]).max() <= cavity.half_y + margin
+            and cavity.floor - margin <= lowest <= cavity.floor + rest_gap
+            and float(s.rotation(pan)[:, 2] @ (centre(s, obj) - s.position(pan))) <= cavity.rim
+        )
+
+    return Predicate(check, f"in_pan({obj!r}, {pan!r})")

@@ -27,6 +27,7 @@ TASK_MODULES: tuple[str, ...] = (
     "place_plate_and_cup",
     "put_objects_cabinet",
     "stack_bowls",
+    "sweep_block",
 )
 
 for _module in TASK_MODULES:

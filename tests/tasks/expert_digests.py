@@ -55,6 +55,7 @@ CASES: tuple[tuple[str, int], ...] = tuple(
         "fetch_block_with_roller",
         "put_objects_cabinet",
         "match_blocks_with_signs",
+        "sweep_block",
     )
     for seed in (0, 2)
 )
