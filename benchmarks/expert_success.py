@@ -4,13 +4,16 @@
     python benchmarks/expert_success.py --tasks all --seeds 0-29 --workers 2
     python benchmarks/expert_success.py --tasks cook,jigsaw --seeds 0-9
     python benchmarks/expert_success.py --tasks jigsaw --randomize   # section "jigsaw (randomized)"
+    python benchmarks/expert_success.py --tasks jigsaw --replay      # also the replay check
 
 For each task, runs the library's ``generate()`` without rendering on every seed of the range
 (into a temporary directory, removed afterwards) and rewrites that task's section of the
 markdown file: kept / tried, each failed seed with its reason, mean episode length, wall time,
-the commit and whether the work tree had uncommitted changes, machine and date. Other tasks'
-sections are kept. The file is rewritten (temp name, then rename) after each task, so an
-interrupted run keeps the tasks it finished.
+the commit and whether the work tree had uncommitted changes, machine and date. With ``--replay``
+every kept episode is then replayed (its recorded actions, same seed and scene, no rendering)
+and the section says how many reproduce every stage. Other tasks' sections are kept. The
+file is rewritten (temp name, then rename) after each task, so an interrupted run keeps the
+tasks it finished.
 """
 
 from __future__ import annotations
@@ -60,6 +63,9 @@ class TaskResult:
     dirty: bool = False
     date: str = ""
     machine: str = ""
+    #: (replays that completed every stage, replays), when the replay check ran
+    replay: tuple[int, int] | None = None
+    replay_failures: list[tuple[int, str]] = field(default_factory=list)
 
 
 def parse_seeds(text: str) -> range:
@@ -142,6 +148,7 @@ def format_section(r: TaskResult) -> str:
     """The markdown section of one task (starts with '## <task>')."""
     share = 100 * r.kept / r.tried if r.tried else 0.0
     length = f"{r.mean_length:.0f} control steps" if r.mean_length is not None else "n/a"
+    replay = f"**{r.replay[0]}/{r.replay[1]}** reproduce every stage" if r.replay else ""
     lines = [
         f"## {r.task}",
         "",
@@ -152,6 +159,7 @@ def format_section(r: TaskResult) -> str:
         f"| commit | `{r.commit}`{' (dirty)' if r.dirty else ''} |",
         f"| mean length of kept episodes | {length} |",
         f"| wall time | {r.wall_seconds / 60:.1f} min |",
+        *([f"| replay check of the kept episodes | {replay} |"] if replay else []),
         f"| date (UTC) | {r.date} |",
         f"| machine | {r.machine} |",
         "",
@@ -167,6 +175,9 @@ def format_section(r: TaskResult) -> str:
             lines.append(f"| {seed} | {text[:300]} |")
     else:
         lines.append("No seed failed.")
+    if r.replay_failures:
+        lines += ["", "| replayed seed | stages not reproduced |", "|---:|---|"]
+        lines += [f"| {seed} | {text} |" for seed, text in sorted(r.replay_failures)]
     return "\n".join(lines) + "\n"
 
 
@@ -193,11 +204,41 @@ def write_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
+def replay_check(task: str, data: Path, workers: int) -> tuple[int, int, list[tuple[int, str]]]:
+    """Replay every episode of `task` under `data` (no rendering): (replays that completed
+    every stage, replays, [(seed, the stages not reproduced)])."""
+    from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate, find_episodes
+
+    episodes = len(find_episodes(data, task))
+    config = EvaluateConfig(
+        task=task,
+        policy="replay",
+        episodes=episodes,
+        data=str(data),
+        render=False,
+        workers=workers,
+        out=str(data / "replay_report"),
+    )
+    report = evaluate(config)
+    failures = [
+        (r.seed, r.error or ", ".join(str(k) for k, done in enumerate(r.completed) if not done))
+        for r in report.rollouts
+        if not r.success
+    ]
+    return sum(r.success for r in report.rollouts), len(report.rollouts), failures
+
+
 def run_task(
-    task: str, seeds: range, workers: int, work_dir: Path, randomize: bool = False
+    task: str,
+    seeds: range,
+    workers: int,
+    work_dir: Path,
+    randomize: bool = False,
+    replay: bool = False,
 ) -> TaskResult:
     """Every seed of `seeds` through generate() (no rendering, no video) in `work_dir`; with
-    `randomize`, on the randomized scenes (textures, table height, clutter)."""
+    `randomize`, on the randomized scenes (textures, table height, clutter); with `replay`,
+    then the replay check of the kept episodes (:func:`replay_check`)."""
     from bicoord_drake.runner.generate import GenerateConfig, generate
 
     config = GenerateConfig(
@@ -214,6 +255,8 @@ def run_task(
     commit, dirty = git_state()
     t0 = time.perf_counter()
     summary = generate(config)
+    wall = time.perf_counter() - t0
+    replayed = replay_check(task, work_dir / task, workers) if replay and summary.kept else None
     end_commit, end_dirty = git_state()  # the tree may change while the seeds run
     dirty = dirty or end_dirty or code_changed(commit, end_commit)
     return TaskResult(
@@ -223,11 +266,13 @@ def run_task(
         tried=summary.tried,
         failures=[(e.seed, e.reason or "") for e in summary.failures],
         mean_length=summary.mean_length,
-        wall_seconds=time.perf_counter() - t0,
+        wall_seconds=wall,
         commit=commit,
         dirty=dirty,
         date=datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M"),
         machine=machine(),
+        replay=replayed[:2] if replayed else None,
+        replay_failures=replayed[2] if replayed else [],
     )
 
 
@@ -241,6 +286,11 @@ def main(argv: list[str] | None = None) -> int:
         "--randomize",
         action="store_true",
         help="randomized scenes (generate --randomize); sections are named '<task> (randomized)'",
+    )
+    parser.add_argument(
+        "--replay",
+        action="store_true",
+        help="then replay every kept episode and report how many reproduce every stage",
     )
     args = parser.parse_args(argv)
 
@@ -258,12 +308,13 @@ def main(argv: list[str] | None = None) -> int:
     for task in tasks:
         print(f"{task}: seeds {seed_text(seeds)} ...", flush=True)
         with tempfile.TemporaryDirectory(prefix=f"expert_success_{task}_") as tmp:
-            result = run_task(task, seeds, args.workers, Path(tmp), args.randomize)
+            result = run_task(task, seeds, args.workers, Path(tmp), args.randomize, args.replay)
         text = args.out.read_text() if args.out.exists() else ""
         write_atomic(args.out, update_markdown(text, {result.task: format_section(result)}))
+        replayed = f", replay {result.replay[0]}/{result.replay[1]}" if result.replay else ""
         print(
             f"{result.task}: kept {result.kept}/{result.tried} "
-            f"in {result.wall_seconds / 60:.1f} min",
+            f"in {result.wall_seconds / 60:.1f} min{replayed}",
             flush=True,
         )
     print(f"wrote {args.out}")

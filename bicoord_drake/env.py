@@ -50,6 +50,7 @@ import numpy as np
 
 from bicoord_drake.config import CameraConfig, StationConfig, check_seed, parse_resolution
 from bicoord_drake.data.episode import Episode, read_episode
+from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import build_station
@@ -414,7 +415,7 @@ class _EndposeIK:
             return min(sols, key=lambda s: float(np.sum((s - seed) ** 2)))
         q12 = self.model.home.copy()
         q12[self.model.side_slice(side)] = seed
-        other = "right" if side == "left" else "left"
+        other = other_side(side)
         try:
             out = self._nlp.solve(
                 {side: TcpTarget(X_WT)},

@@ -44,6 +44,13 @@ Side = Literal["left", "right"]
 SIDES: tuple[Side, Side] = ("left", "right")
 
 
+def other_side(side: str) -> Side:
+    """The arm that is not `side` ('left' <-> 'right')."""
+    if side not in SIDES:
+        raise ValueError(f"side must be one of {SIDES}, got {side!r}")
+    return "right" if side == "left" else "left"
+
+
 class LinkSpec(BaseModel):
     """A rigid link: inertia about its centre of mass, collision primitives, visual primitives."""
 

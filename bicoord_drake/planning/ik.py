@@ -42,7 +42,7 @@ from pydrake.all import (
     SolverOptions,
 )
 
-from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.models.embodiment import SIDES, other_side
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.sim.station import rigid_transform
@@ -150,7 +150,7 @@ class BimanualIK:
     ) -> np.ndarray:
         """One arm reaches `target` while the other stays at `q_other` (6 angles); returns the
         full q12. Keyword arguments are those of :meth:`solve`."""
-        other = "right" if side == "left" else "left"
+        other = other_side(side)
         return self.solve({side: target}, q_fixed={other: np.asarray(q_other)}, **kwargs)
 
     # ------------------------------------------------------------------ internals

@@ -33,9 +33,11 @@ def split_action(action: np.ndarray) -> dict[str, tuple[np.ndarray, float]]:
 class ActionInterpolator(LeafSystem):
     """Latches the action every control period; outputs per-arm PD desired states (FOH).
 
-    Discrete state: ``[previous action (14), current action (14), latch time (1)]``. Outputs
-    ``left_desired_state`` / ``right_desired_state`` in actuator order ``[q arm (6), finger (1),
-    v arm (6), finger velocity (1)]``, the layout of the plant's desired-state input ports.
+    Discrete state: ``[previous action (14), current action (14), latch time (1)]``. Output
+    ``desired_states`` (28): the left arm's then the right arm's PD desired state, each in
+    actuator order ``[q arm (6), finger (1), v arm (6), finger velocity (1)]`` (the layout of the
+    plant's desired-state input ports). One output for both arms, split by a native
+    ``Demultiplexer`` in the station: the plant reads it every step, so it is computed once.
     """
 
     def __init__(self, embodiment: Embodiment, control_period: float) -> None:
@@ -46,15 +48,16 @@ class ActionInterpolator(LeafSystem):
         home = embodiment.home_action()
         self._state = self.DeclareDiscreteState(np.concatenate([home, home, [0.0]]))
         self.DeclarePeriodicDiscreteUpdateEvent(control_period, 0.0, self._latch)
-        for k, side in enumerate(SIDES):
-            self.DeclareVectorOutputPort(
-                f"{side}_desired_state",
-                14,
-                lambda context, output, k=k: self._desired(context, output, k),
-            )
+        # Where the action's 14 entries go in the 28-vector [left q, left v, right q, right v].
+        self._q_slots = np.r_[0:7, 14:21]
+        self._v_slots = np.r_[7:14, 21:28]
+        self._desired_states = self.DeclareVectorOutputPort("desired_states", 2 * 14, self._desired)
 
     def action_input_port(self):
         return self._action
+
+    def desired_states_output_port(self):
+        return self._desired_states
 
     def set_action(self, context: Context, action: np.ndarray) -> None:
         """Hold `action` from now on without interpolation (used at reset)."""
@@ -70,25 +73,34 @@ class ActionInterpolator(LeafSystem):
             np.concatenate([x[14:28], new, [context.get_time()]])
         )
 
-    def _desired(self, context: Context, output: BasicVector, k: int) -> None:
+    def _desired(self, context: Context, output: BasicVector) -> None:
         x = context.get_discrete_state(self._state).get_value()
         prev, curr, t0 = x[0:14], x[14:28], x[28]
         elapsed = context.get_time() - t0
-        s = np.clip(elapsed / self._period, 0.0, 1.0)
-        target = prev + s * (curr - prev)
+        s = min(max(elapsed / self._period, 0.0), 1.0)
+        delta = curr - prev
         # The segment's velocity holds on the closed period: the plant step that coincides with
         # the next latch still reads this segment, and a zero there would brake the arm.
         moving = elapsed <= self._period * (1.0 + 1e-9)
-        velocity = (curr - prev) / self._period if moving else np.zeros(14)
-        sl = slice(7 * k, 7 * k + 7)
-        q, v = target[sl].copy(), velocity[sl].copy()
-        q[6] = self._gripper.finger_position(q[6])
-        v[6] = v[6] * (self._gripper.finger_max - self._gripper.finger_min)
-        output.SetFromVector(np.concatenate([q, v]))
+        # Layout per arm: [q arm (6), finger, v arm (6), finger velocity]; the action's opening
+        # (index 6 of each arm's 7) becomes a finger position and a finger velocity.
+        out = np.empty(28)
+        out[self._q_slots] = prev + s * delta
+        out[self._v_slots] = delta / self._period if moving else 0.0
+        g = self._gripper
+        span = g.finger_max - g.finger_min
+        for k in (6, 20):
+            out[k] = g.finger_min + min(max(out[k], 0.0), 1.0) * span
+            out[k + 7] = out[k + 7] * span
+        output.SetFromVector(out)
 
 
 class GravityFeedForward(LeafSystem):
-    """Actuation that cancels gravity on each arm, computed on a robot-only control plant."""
+    """Actuation that cancels gravity on each arm, computed on a robot-only control plant.
+
+    Output ``actuation``: the left arm's actuators then the right arm's (split by a native
+    ``Demultiplexer`` in the station, so the gravity forces are computed once per plant step).
+    """
 
     def __init__(
         self,
@@ -109,21 +121,28 @@ class GravityFeedForward(LeafSystem):
             ]
             for side, inst in control_arms.items()
         }
-        for side in SIDES:
-            self.DeclareVectorOutputPort(
-                f"{side}_actuation",
-                len(self._act_dofs[side]),
-                lambda context, output, side=side: self._calc(context, output, side),
+        self._all_act_dofs = [i for side in SIDES for i in self._act_dofs[side]]
+        # Index into the station plant's state of each control-plant position, in its order.
+        index = np.arange(plant.num_positions(), dtype=float)
+        arm_positions = np.zeros(control_plant.num_positions())
+        for side, inst in arms.items():
+            control_plant.SetPositionsInArray(
+                control_arms[side], plant.GetPositionsFromArray(inst, index), arm_positions
             )
+        self._arm_positions = arm_positions.astype(int)
+        self._actuation = self.DeclareVectorOutputPort(
+            "actuation", len(self._all_act_dofs), self._calc
+        )
 
-    def _calc(self, context: Context, output: BasicVector, side: str) -> None:
+    def actuation_sizes(self) -> list[int]:
+        """The number of actuators of each arm, in ``SIDES`` order (the output's split)."""
+        return [len(self._act_dofs[side]) for side in SIDES]
+
+    def _calc(self, context: Context, output: BasicVector) -> None:
         x = self._state.Eval(context)
-        nq = self._plant.num_positions()
-        for s, inst in self._arms.items():
-            q = self._plant.GetPositionsFromArray(inst, x[:nq])
-            self._cplant.SetPositions(self._ccontext, self._carms[s], q)
+        self._cplant.SetPositions(self._ccontext, x[self._arm_positions])
         tau_g = self._cplant.CalcGravityGeneralizedForces(self._ccontext)
-        output.SetFromVector(-tau_g[self._act_dofs[side]])
+        output.SetFromVector(-tau_g[self._all_act_dofs])
 
 
 class StationObserver(LeafSystem):

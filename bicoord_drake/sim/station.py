@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from pydrake.all import (
     AddMultibodyPlant,
+    Demultiplexer,
     Diagram,
     DiagramBuilder,
     FixedOffsetFrame,
@@ -194,11 +195,10 @@ def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
         "action_interpolator", ActionInterpolator(embodiment, config.control_period)
     )
     builder.ExportInput(interpolator.action_input_port(), "action")
-    for side in SIDES:
-        builder.Connect(
-            interpolator.GetOutputPort(f"{side}_desired_state"),
-            plant.get_desired_state_input_port(arms[side]),
-        )
+    desired = builder.AddNamedSystem("desired_state_split", Demultiplexer([14] * len(SIDES)))
+    builder.Connect(interpolator.desired_states_output_port(), desired.get_input_port())
+    for k, side in enumerate(SIDES):
+        builder.Connect(desired.get_output_port(k), plant.get_desired_state_input_port(arms[side]))
 
     control_plant, control_arms = build_control_plant(embodiment)
     if config.gravity_compensation:
@@ -206,11 +206,10 @@ def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
             "gravity_feed_forward", GravityFeedForward(plant, arms, control_plant, control_arms)
         )
         builder.Connect(plant.get_state_output_port(), gravity.GetInputPort("state"))
-        for side in SIDES:
-            builder.Connect(
-                gravity.GetOutputPort(f"{side}_actuation"),
-                plant.get_actuation_input_port(arms[side]),
-            )
+        split = builder.AddNamedSystem("actuation_split", Demultiplexer(gravity.actuation_sizes()))
+        builder.Connect(gravity.GetOutputPort("actuation"), split.get_input_port())
+        for k, side in enumerate(SIDES):
+            builder.Connect(split.get_output_port(k), plant.get_actuation_input_port(arms[side]))
 
     observer = builder.AddNamedSystem(
         "observer", StationObserver(plant, embodiment, arms, list(object_bodies.values()))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 from pydrake.all import AngleAxis, RigidTransform, RotationMatrix
@@ -13,7 +14,6 @@ from bicoord_drake.models.objects import CylinderShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
-    Motion,
     SkillContext,
     carry_together,
     hold,
@@ -35,7 +35,7 @@ from bicoord_drake.stages.predicates import (
     rests_on,
     upright,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 ROLLER, BLOCK = "roller", "block"
@@ -194,11 +194,7 @@ class BalanceRoller(Task):
         radius = scene.draws["roller_diameter"] / 2
         block_top = TABLE_TOP + BLOCK_EDGE
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         # ---- stage 1: both hands grasp the ends, close on the same step, lift it level
         yield from run(pick_together(ctx, ROLLER, lift=LIFT))

@@ -38,6 +38,7 @@ from bicoord_drake.models.scene import Scene
 from bicoord_drake.stages.stage import SIDE_NAMES, Stage, WorldState
 
 if TYPE_CHECKING:
+    from bicoord_drake.planning.skills import Motion, SkillContext
     from bicoord_drake.sim.simulation import Simulation
 
 #: Fewest instruction paraphrases a task must provide (seen + unseen).
@@ -121,6 +122,18 @@ class WorldView:
     def state(self, action: np.ndarray) -> WorldState:
         """A :class:`WorldState` snapshot (what the stage predicates see)."""
         return WorldState.capture(self._sim, action)
+
+
+def follow(ctx: SkillContext, view: WorldView, motion: Motion) -> Iterator[np.ndarray]:
+    """Yield `motion`'s actions, then bring `ctx` up to date with the world: the joint
+    positions it planned to (``ctx.q``), the measured object poses and, from them, the pose of
+    each held object in its gripper (:meth:`SkillContext.refresh_grasps`).
+
+    An expert runs every motion through this, so each plan starts from what happened."""
+    yield from motion.actions()
+    poses = view.object_transforms()
+    ctx.sync(ctx.q, object_poses=poses)
+    ctx.refresh_grasps(poses)
 
 
 class Task(ABC):

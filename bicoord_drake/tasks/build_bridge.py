@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform, RollPitchYaw
@@ -13,7 +14,6 @@ from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
-    Motion,
     SkillContext,
     carry_together,
     hold,
@@ -38,7 +38,7 @@ from bicoord_drake.stages.predicates import (
     untouched,
     upright,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 BEAM, LEFT_PIER, RIGHT_PIER = "beam", "pier_left", "pier_right"
@@ -232,11 +232,7 @@ class BuildBridge(Task):
         side = scene.draws["section"]
         top = TABLE_TOP + side  # the piers' tops
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         # ---- stage 1: each arm picks the cube on its side, at the same time
         yield from run(merge(ctx, pick(ctx, "left", LEFT_PIER), pick(ctx, "right", RIGHT_PIER)))

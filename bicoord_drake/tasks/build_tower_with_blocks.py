@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform
 
+from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
@@ -36,7 +38,7 @@ from bicoord_drake.stages.predicates import (
     untouched,
     within_xy,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 #: Edge ranges (m) of the three cubes, bottom of the tower first.
@@ -131,7 +133,7 @@ class BuildTowerWithBlocks(Task):
         sides = {
             "large": large_side,
             "middle": middle_side,
-            "small": "right" if middle_side == "left" else "left",
+            "small": other_side(middle_side),
         }
         spot = [0.0, float(rng.uniform(*SPOT_Y))]
         xy = _positions(rng, sides, spot)
@@ -232,11 +234,7 @@ class BuildTowerWithBlocks(Task):
         first, mid_arm, small_arm = sides["large"], sides["middle"], sides["small"]
         ctx = SkillContext(PlanningModel(scene))
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         def on(name: str, support: str):
             X_WS = ctx.model.object_pose(support)  # measured at the last sync

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform
 
+from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import (
     BinShape,
@@ -24,7 +26,6 @@ from bicoord_drake.planning.grasps import GraspParams, arm_base, bounding_box_gr
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
-    Motion,
     SkillContext,
     drop_into,
     hold,
@@ -43,7 +44,7 @@ from bicoord_drake.stages.predicates import (
     settled,
     untouched,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 from bicoord_drake.tasks.turn_taking import alternating_expert, alternating_stages
 
@@ -144,7 +145,7 @@ class CleanTable(Task):
     def sample_scene(self, seed: int) -> Scene:
         rng = np.random.default_rng(seed)
         first = str(rng.choice(["left", "right"]))
-        other = "right" if first == "left" else "left"
+        other = other_side(first)
         kinds = [str(k) for k in rng.choice(sorted(KINDS), size=4, replace=False)]
         poses = _positions(rng)
         # drop order: first arm's near object, other's near, first's far, other's far
@@ -211,11 +212,7 @@ class CleanTable(Task):
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         ctx = SkillContext(PlanningModel(scene))
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         yield from alternating_expert(
             ctx,

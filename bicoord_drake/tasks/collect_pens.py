@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform, RotationMatrix
 
+from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import SceneObject
 from bicoord_drake.models.pens import PenShape, max_lean, pen_holder, random_pen
@@ -21,7 +23,6 @@ from bicoord_drake.planning.grasps import Grasp, arm_base, gripper_frame, natura
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
-    Motion,
     SkillContext,
     hold,
     merge,
@@ -42,7 +43,7 @@ from bicoord_drake.stages.predicates import (
     tip_in,
     untouched,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 from bicoord_drake.tasks.turn_taking import alternating_expert, alternating_stages
 
@@ -165,7 +166,7 @@ class CollectPens(Task):
     def sample_scene(self, seed: int) -> Scene:
         rng = np.random.default_rng(seed)
         first = str(rng.choice(["left", "right"]))
-        other = "right" if first == "left" else "left"
+        other = other_side(first)
         kinds = [str(k) for k in rng.choice(["pen", "marker"], size=4)]
         pens = [random_pen(rng, k) for k in kinds]
         # drop order: first arm's near pen, other's near, first's far, other's far
@@ -217,7 +218,7 @@ class CollectPens(Task):
     # ---------------------------------------------------------------- stages
     def stages(self, scene: Scene) -> list[Stage]:
         first = scene.draws["first_side"]
-        second = "right" if first == "left" else "left"
+        second = other_side(first)
         limit = lean_limit([scene.object(p).shape for p in PENS])
         subgoals = [
             ("pick a pen", "pick a pen"),
@@ -245,11 +246,7 @@ class CollectPens(Task):
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         ctx = SkillContext(PlanningModel(scene))
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         # take_turn's fallbacks: a finger leaving the holder can graze a pen standing in it
         # (each plan kept its own clearance from it when it was made)

@@ -44,7 +44,7 @@ from bicoord_drake.stages.predicates import (
     reset_predicate,
     settled,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 ROLLS = ("roll_0", "roll_1")
@@ -284,10 +284,7 @@ class Cook(Task):
         home = view.embodiment.home_action()
 
         def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+            yield from follow(ctx, view, motion)
             _park(ctx, in_pan)
 
         def retoss(roll: str, aims: list[float] | None) -> Iterator[np.ndarray]:

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from pydrake.all import RigidTransform
 
+from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose, Primitive
 from bicoord_drake.models.objects import BoxShape, CompoundShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
@@ -58,7 +59,7 @@ from bicoord_drake.stages.predicates import (
     weighted,
     within_square,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 #: The cubes, bottom of the tower first; their edges (m) and density (painted wood).
@@ -295,10 +296,7 @@ class DivideBlockTower(Task):
         placed: dict[str, list[str]] = {"left": [], "right": []}
 
         def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+            yield from follow(ctx, view, motion)
             _check_tower(view, scene, on_tower)
 
         def goal(side: str, name: str) -> RigidTransform:
@@ -372,11 +370,11 @@ class Step:
 
     @property
     def lower_arm(self) -> str:
-        return _other(self.upper_arm)
+        return other_side(self.upper_arm)
 
     @property
     def other_arm(self) -> str:
-        return _other(self.upper_arm)
+        return other_side(self.upper_arm)
 
 
 def _steps(order: list[str]) -> list[Step]:
@@ -395,7 +393,7 @@ def _next_lower(order: list[str], level: int) -> int:
 
 def _roles(order: list[str]) -> tuple[dict[str, str], dict[str, str]]:
     """What each arm does in the two take stages (the annotations' sub-goals per arm)."""
-    top, below = ARM[order[3]], _other(ARM[order[3]])
+    top, below = ARM[order[3]], other_side(ARM[order[3]])
     if ARM[order[2]] != top:
         first = {
             top: "side-grasp the top cube, lift it off",
@@ -404,7 +402,7 @@ def _roles(order: list[str]) -> tuple[dict[str, str], dict[str, str]]:
         upper = ARM[order[1]]
         last = {
             upper: "side-grasp the upper cube, lift it off",
-            _other(upper): "side-grasp the bottom cube as it comes free, lift it",
+            other_side(upper): "side-grasp the bottom cube as it comes free, lift it",
         }
         return first, last
     first = {
@@ -416,10 +414,6 @@ def _roles(order: list[str]) -> tuple[dict[str, str], dict[str, str]]:
         below: "side-grasp the cube under them as it comes free, then the bottom cube",
     }
     return first, last
-
-
-def _other(side: str) -> str:
-    return "right" if side == "left" else "left"
 
 
 # -------------------------------------------------------------------- expert helpers

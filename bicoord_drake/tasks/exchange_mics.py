@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform, RotationMatrix
@@ -48,7 +49,7 @@ from bicoord_drake.stages.predicates import (
     upright,
     within_xy,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 #: Microphone: a handle (radius, length) standing on the table and a ball head on top.
@@ -230,11 +231,7 @@ class ExchangeMics(Task):
         sq_l, sq_r = scene.draws["square_left"], scene.draws["square_right"]
         ctx = SkillContext(PlanningModel(scene))
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         # ---- stage 1: both pick their mic by the ball head, from above
         left = _pick_mic(ctx, "left", "mic_left", lift=0.12)

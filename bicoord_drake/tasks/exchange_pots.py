@@ -52,7 +52,7 @@ from bicoord_drake.stages.predicates import (
     upright,
     within_xy,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 POT_1, POT_2 = "pot_1", "pot_2"
@@ -233,10 +233,7 @@ class ExchangePots(Task):
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         ctx = SkillContext(PlanningModel(scene), speed=SPEED)
         for motion in plan_stages(ctx, self.spots(scene)):
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+            yield from follow(ctx, view, motion)
 
 
 def _set_down(

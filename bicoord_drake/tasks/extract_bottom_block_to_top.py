@@ -4,10 +4,12 @@ arm holds the two above it up, then put the pulled cube on top."""
 from __future__ import annotations
 
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform
 
+from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
@@ -43,7 +45,7 @@ from bicoord_drake.stages.predicates import (
     stacked,
     untouched,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 PLATFORM = "platform"
@@ -214,11 +216,7 @@ class ExtractBottomBlockToTop(Task):
         ext, lifter = _roles(scene)
         ctx = SkillContext(PlanningModel(scene))
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         # ---- stage 1: lift the middle cube, pull the bottom one out as soon as it is up
         yield from run(_extract(ctx, scene, ext, lifter))
@@ -350,7 +348,7 @@ def _vertical(ctx: SkillContext, side: str, dz: float, *, ignore, label: str) ->
 
 def _together(ctx: SkillContext, ext: str, ext_plan: ArmPlan, lifter_plan: ArmPlan, ignore):
     """Both plans at their own pace, no delay added (the timing between them is planned)."""
-    plans = {ext: ext_plan, ("left" if ext == "right" else "right"): lifter_plan}
+    plans = {ext: ext_plan, (other_side(ext)): lifter_plan}
     ctx.model.set_padding(ctx.clearance, 0.0)
     return merge(ctx, plans["left"], plans["right"], stretch=False, max_delay=0, ignore=ignore)
 
@@ -399,7 +397,7 @@ def _grasps(ctx: SkillContext, scene: Scene, name: str, side: str) -> list[Grasp
 def _roles(scene: Scene) -> tuple[str, str]:
     """(extractor, lifter)."""
     ext = scene.draws["extractor"]
-    return ext, ("left" if ext == "right" else "right")
+    return ext, (other_side(ext))
 
 
 def _shape(scene: Scene) -> BoxShape:

@@ -10,6 +10,7 @@ import math
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 from pydrake.all import AngleAxis, RigidTransform, RotationMatrix
@@ -29,7 +30,6 @@ from bicoord_drake.planning.grasps import (
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
-    Motion,
     SkillContext,
     hold,
     merge,
@@ -49,7 +49,7 @@ from bicoord_drake.stages.predicates import (
     rests_on,
     settled,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 SHELF, CUBE, ROLLER = "shelf", "cube", "roller"
@@ -228,11 +228,7 @@ class FetchBlockWithRoller(Task):
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         ctx = SkillContext(PlanningModel(scene), speed=SPEED)
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         cube_y = float(ctx.model.object_pose(CUBE).translation()[1])
         # ---- stage 1: right grasps the roller, left goes to wait above the exit

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform, RotationMatrix
@@ -21,7 +22,6 @@ from bicoord_drake.planning.grasps import (
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
-    Motion,
     SkillContext,
     hold,
     merge,
@@ -43,7 +43,7 @@ from bicoord_drake.stages.predicates import (
     upright,
     within_xy,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 # ---- the pouring bowl (left): a straight 12 mm wall the pads grip flat, with a spout - a gap
@@ -265,11 +265,7 @@ class HandoverBlockWithBowls(Task):
         left_xy = scene.draws["left_bowl_xy"]
         target_xy = scene.draws["target_xy"]
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         # The cube only ever rides in a bowl: the planner leaves it out (the bowls and grippers
         # are checked against each other and the table).

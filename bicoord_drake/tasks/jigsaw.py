@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 
@@ -10,7 +11,7 @@ from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.skills import Motion, SkillContext, hold, merge, pick, place, retreat
+from bicoord_drake.planning.skills import SkillContext, hold, merge, pick, place, retreat
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     all_of,
@@ -20,7 +21,7 @@ from bicoord_drake.stages.predicates import (
     lifted,
     settled,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 CUBE = 0.04
@@ -162,11 +163,7 @@ class Jigsaw(Task):
         targets = {"left": empty[:2], "right": empty[2:][::-1]}
         ctx = SkillContext(PlanningModel(scene))
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         def goal(xy):
             from pydrake.all import RigidTransform

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform, RotationMatrix
@@ -46,7 +47,7 @@ from bicoord_drake.stages.predicates import (
     settled,
     stands_upright_at,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 #: The cuboids: length (m) and the side of their square ends (m), one per cuboid.
@@ -264,11 +265,7 @@ class MatchBlocksWithSigns(Task):
         order = [CUBOIDS[i] for i in placement_order(scene)]
         squares = {CUBOIDS[i]: scene.draws["square_xy"][i] for i in range(3)}
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         with narrow_jaw(ctx, order[0]):
             left = pick_near_end(ctx, order[0])

@@ -9,6 +9,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform
@@ -27,7 +28,6 @@ from bicoord_drake.planning.grasps import (
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
-    Motion,
     SkillContext,
     carry_above,
     hold,
@@ -51,7 +51,7 @@ from bicoord_drake.stages.predicates import (
     upright,
     within_xy,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 #: A dish held by its rim: a straight 12 mm wall (what holds level in a rim grasp,
@@ -241,11 +241,7 @@ class PlacePlateAndCup(Task):
         plates = _order(scene, PLATES, targets[0])  # the nearer plate to target 1 first
         cups = _order(scene, CUPS, targets[0])
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         def plate_goal(xy):
             return table_target(xy, PLATE)

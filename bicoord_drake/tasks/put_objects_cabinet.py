@@ -7,6 +7,7 @@ Measurements of the expert in physics: benchmarks/bench_task_put_objects_cabinet
 from __future__ import annotations
 
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform, RotationMatrix
@@ -17,7 +18,6 @@ from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
-    Motion,
     SkillContext,
     carry_above,
     hold,
@@ -39,7 +39,7 @@ from bicoord_drake.stages.predicates import (
     untouched,
     weighted,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 CABINET, DRAWER = "cabinet", "drawer"
@@ -196,11 +196,7 @@ class PutObjectsCabinet(Task):
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         ctx = SkillContext(PlanningModel(scene), speed=SPEED)
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         box_1, box_2 = BOXES
         # ---- stage 1: left picks box 1, right grasps the handle

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform, RotationMatrix
 
+from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
@@ -36,7 +38,7 @@ from bicoord_drake.stages.predicates import (
     settled,
     tilt,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 #: The bowl: 11.6 cm across the rim, 9 cm at the base, 5 cm deep, 9 mm wall (thicker than the
@@ -146,7 +148,7 @@ class StackBowls(Task):
     def sample_scene(self, seed: int) -> Scene:
         rng = np.random.default_rng(seed)
         first = str(rng.choice(["left", "right"]))
-        other = "right" if first == "left" else "left"
+        other = other_side(first)
         xy = _positions(rng)
         color_names = [str(c) for c in rng.choice(sorted(COLORS), size=4, replace=False)]
         # stacking order: first arm's near bowl, other's near, first's far, other's far
@@ -181,7 +183,7 @@ class StackBowls(Task):
     # ---------------------------------------------------------------- stages
     def stages(self, scene: Scene) -> list[Stage]:
         first = scene.draws["first_side"]
-        second = "right" if first == "left" else "left"
+        second = other_side(first)
 
         def arms(f: str, s: str) -> dict[str, str]:
             return {first: f, second: s}
@@ -227,15 +229,11 @@ class StackBowls(Task):
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         first = scene.draws["first_side"]
-        second = "right" if first == "left" else "left"
+        second = other_side(first)
         b1, b2, b3, b4 = BOWLS
         ctx = SkillContext(PlanningModel(scene))
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         def both(plans: dict[str, ArmPlan]) -> Motion:
             return merge(ctx, plans["left"], plans["right"])

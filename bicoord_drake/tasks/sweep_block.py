@@ -8,6 +8,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform, RotationMatrix
@@ -26,7 +27,6 @@ from bicoord_drake.planning.grasps import Grasp, gripper_frame
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
-    Motion,
     SkillContext,
     hold,
     merge,
@@ -46,7 +46,7 @@ from bicoord_drake.stages.predicates import (
     settled,
     untouched,
 )
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
 
 PEDESTAL, CUBE, PAN, BRUSH, BIN = "pedestal", "cube", "dustpan", "brush", "bin"
@@ -307,11 +307,7 @@ class SweepBlock(Task):
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         ctx = SkillContext(PlanningModel(scene), speed=SPEED)
 
-        def run(motion: Motion) -> Iterator[np.ndarray]:
-            yield from motion.actions()
-            poses = view.object_transforms()
-            ctx.sync(ctx.q, object_poses=poses)
-            ctx.refresh_grasps(poses)
+        run = partial(follow, ctx, view)
 
         # ---- stage 1: both arms pick their tool at once
         left = pick(ctx, "left", PAN, grasps=handle_grasps(ctx, PAN), lift=LIFT)

@@ -13,6 +13,7 @@ from collections.abc import Callable, Iterator, Sequence
 
 import numpy as np
 
+from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
@@ -23,10 +24,6 @@ from bicoord_drake.planning.skills import (
 )
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import Predicate
-
-
-def other_side(side: str) -> str:
-    return "right" if side == "left" else "left"
 
 
 def alternating_stages(

@@ -5,7 +5,13 @@ import pytest
 from pydantic import ValidationError
 from pydrake.all import MultibodyPlant
 
-from bicoord_drake.models.embodiment import Embodiment, aloha_viperx, arm_sdf, get_embodiment
+from bicoord_drake.models.embodiment import (
+    Embodiment,
+    aloha_viperx,
+    arm_sdf,
+    get_embodiment,
+    other_side,
+)
 from bicoord_drake.models.geometry import pose_matrix
 from bicoord_drake.sim.station import add_robot
 
@@ -168,3 +174,10 @@ def test_arm_sdf_is_reused_but_never_names_a_missing_mesh(tmp_path, monkeypatch)
     monkeypatch.setenv("BICOORD_CACHE", str(tmp_path / "b"))
     moved = arm_sdf(embodiment, "left_arm")
     assert all(p.is_relative_to(tmp_path / "b") and p.exists() for p in meshes(moved))
+
+
+def test_other_side_swaps_the_arms_and_rejects_other_names():
+    assert other_side("left") == "right"
+    assert other_side("right") == "left"
+    with pytest.raises(ValueError, match="left"):
+        other_side("middle")

@@ -145,3 +145,38 @@ def test_randomize_measures_randomized_scenes_in_their_own_section(es, tmp_path,
     assert not seen["config"].randomize
     text = out.read_text()
     assert text.count("## jigsaw (randomized)") == 1 and text.count("## jigsaw\n") == 1
+
+
+def test_section_reports_the_replay_check_and_what_did_not_reproduce(es):
+    r = result(es, "cook", 10)
+    assert "replay check" not in es.format_section(r)
+    r.replay, r.replay_failures = (9, 10), [(7, "2, 3")]
+    text = es.format_section(r)
+    assert "| replay check of the kept episodes | **9/10** reproduce every stage |" in text
+    assert "| 7 | 2, 3 |" in text
+
+
+def test_replay_option_replays_the_kept_episodes_of_the_run(es, tmp_path, monkeypatch):
+    from types import SimpleNamespace
+
+    from bicoord_drake.runner import generate as gen
+
+    monkeypatch.setattr(
+        gen, "generate", lambda config: SimpleNamespace(kept=2, tried=3, failures=[], mean_length=9)
+    )
+    monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
+    replayed = {}
+
+    def fake_replay(task, data, workers):
+        replayed.update(task=task, data=data, workers=workers)
+        return 1, 2, [(5, "1")]
+
+    monkeypatch.setattr(es, "replay_check", fake_replay)
+    out = tmp_path / "success.md"
+    assert es.main(["--tasks", "jigsaw", "--seeds", "0-2", "--out", str(out)]) == 0
+    assert not replayed  # only when asked
+    argv = ["--tasks", "jigsaw", "--seeds", "0-2", "--replay", "--workers", "2", "--out", str(out)]
+    assert es.main(argv) == 0
+    assert replayed["task"] == "jigsaw" and replayed["workers"] == 2
+    assert replayed["data"].name == "jigsaw"
+    assert "**1/2** reproduce every stage" in out.read_text()

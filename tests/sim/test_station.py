@@ -39,13 +39,13 @@ def test_first_order_hold_moves_targets_linearly_between_actions(sim):
     interp = st.interpolator
     ctx = interp.GetMyContextFromRoot(sim.context)
     sim.step(a)  # latched at t = 0: the target reaches `a` at t = 1/15
-    desired = interp.GetOutputPort("left_desired_state").Eval(ctx)
+    desired = interp.desired_states_output_port().Eval(ctx)[:14]
     np.testing.assert_allclose(desired[:6], a[:6], atol=1e-9)
     # half-way through the next period the target is half-way from a to b
     b = home.copy()
     sim._action_port.FixValue(sim.context, b)
     sim.simulator.AdvanceTo(1.5 / 15)
-    desired = interp.GetOutputPort("left_desired_state").Eval(ctx)
+    desired = interp.desired_states_output_port().Eval(ctx)[:14]
     np.testing.assert_allclose(desired[:6], (a[:6] + b[:6]) / 2, atol=1e-9)
 
 
@@ -133,6 +133,6 @@ def test_target_velocity_holds_up_to_the_period_boundary(sim):
     a = _target(st)
     sim.step(a)  # now exactly at the end of the first segment, before the next latch
     ctx = st.interpolator.GetMyContextFromRoot(sim.context)
-    desired = st.interpolator.GetOutputPort("left_desired_state").Eval(ctx)
+    desired = st.interpolator.desired_states_output_port().Eval(ctx)[:14]
     home = st.embodiment.home_action()
     np.testing.assert_allclose(desired[7:13], (a[:6] - home[:6]) * 15.0, rtol=1e-9)

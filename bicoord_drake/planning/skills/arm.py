@@ -11,6 +11,7 @@ from collections.abc import Iterable
 import numpy as np
 from pydrake.all import RigidTransform
 
+from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.skills.core import ArmPlan, SkillContext
@@ -96,7 +97,7 @@ def solve_tcp(
     clearance: float | None = None,
 ) -> np.ndarray:
     """Six joint angles of `side` reaching `target` with the other arm fixed."""
-    other = "right" if side == "left" else "left"
+    other = other_side(side)
     seed = ctx.q.copy() if seed6 is None else ctx.with_arm(side, seed6)
     q12 = ctx.ik.solve_single(
         side,

@@ -12,6 +12,7 @@ from collections.abc import Callable, Iterable, Sequence
 import numpy as np
 from pydrake.all import RigidTransform
 
+from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.objects import BoxShape, CylinderShape
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.ik import TcpTarget
@@ -44,7 +45,7 @@ def track(
     joint stays within its velocity limit; IK runs at every sample, seeded from the
     previous one, and every step between samples is collision-checked."""
     ignore = list(ignore)
-    other = "right" if side == "left" else "left"
+    other = other_side(side)
     duration = max(
         distance / (TRACK_SPEED * ctx.speed), rotation / (TRACK_ROTATION * ctx.speed), 0.2
     )
