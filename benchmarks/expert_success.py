@@ -176,7 +176,7 @@ def format_section(r: TaskResult) -> str:
     else:
         lines.append("No seed failed.")
     if r.replay_failures:
-        lines += ["", "| replayed seed | stages not reproduced |", "|---:|---|"]
+        lines += ["", "| replayed seed | why it did not reproduce |", "|---:|---|"]
         lines += [f"| {seed} | {text} |" for seed, text in sorted(r.replay_failures)]
     return "\n".join(lines) + "\n"
 
@@ -206,8 +206,13 @@ def write_atomic(path: Path, text: str) -> None:
 
 def replay_check(task: str, data: Path, workers: int) -> tuple[int, int, list[tuple[int, str]]]:
     """Replay every episode of `task` under `data` (no rendering): (replays that completed
-    every stage, replays, [(seed, the stages not reproduced)])."""
-    from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate, find_episodes
+    every stage, replays, [(seed, why it failed: its error or the stages not reproduced)])."""
+    from bicoord_drake.runner.evaluate import (
+        EvaluateConfig,
+        evaluate,
+        find_episodes,
+        unmet_stages,
+    )
 
     episodes = len(find_episodes(data, task))
     config = EvaluateConfig(
@@ -221,7 +226,7 @@ def replay_check(task: str, data: Path, workers: int) -> tuple[int, int, list[tu
     )
     report = evaluate(config)
     failures = [
-        (r.seed, r.error or ", ".join(str(k) for k, done in enumerate(r.completed) if not done))
+        (r.seed, r.error or unmet_stages(report.stages, r))
         for r in report.rollouts
         if not r.success
     ]

@@ -521,7 +521,7 @@ def evaluate(
     report = _report(task, config, rollouts, skipped, env)
     if config.policy == "expert":
         report.expert_failures = [
-            {"seed": r.seed, "reason": r.error or _unmet(report.stages, r)}
+            {"seed": r.seed, "reason": r.error or unmet_stages(report.stages, r)}
             for r in rollouts
             if not r.success
         ]
@@ -530,7 +530,7 @@ def evaluate(
     return report
 
 
-def _unmet(stages: list[dict[str, Any]], r: RolloutResult) -> str:
+def unmet_stages(stages: list[dict[str, Any]], r: RolloutResult) -> str:
     """Why a rollout that did not raise failed: the stages that did not count."""
     missing = [s["subgoal"] for s, ok in zip(stages, r.completed, strict=True) if not ok]
     return f"stage_not_verified after {r.steps} steps: {', '.join(missing)}"

@@ -51,6 +51,7 @@ class ActionInterpolator(LeafSystem):
         # Where the action's 14 entries go in the 28-vector [left q, left v, right q, right v].
         self._q_slots = np.r_[0:7, 14:21]
         self._v_slots = np.r_[7:14, 21:28]
+        self._finger_q = self._q_slots[[6, 13]]  # each arm's finger position (its velocity: +7)
         self._desired_states = self.DeclareVectorOutputPort("desired_states", 2 * 14, self._desired)
 
     def action_input_port(self):
@@ -88,10 +89,8 @@ class ActionInterpolator(LeafSystem):
         out[self._q_slots] = prev + s * delta
         out[self._v_slots] = delta / self._period if moving else 0.0
         g = self._gripper
-        span = g.finger_max - g.finger_min
-        for k in (6, 20):
-            out[k] = g.finger_min + min(max(out[k], 0.0), 1.0) * span
-            out[k + 7] = out[k + 7] * span
+        out[self._finger_q] = g.finger_position(out[self._finger_q])
+        out[self._finger_q + 7] *= g.finger_max - g.finger_min
         output.SetFromVector(out)
 
 
@@ -110,8 +109,7 @@ class GravityFeedForward(LeafSystem):
         control_arms: dict[str, ModelInstanceIndex],
     ) -> None:
         super().__init__()
-        self._plant, self._arms = plant, arms
-        self._cplant, self._carms = control_plant, control_arms
+        self._cplant = control_plant
         self._ccontext = control_plant.CreateDefaultContext()
         self._state = self.DeclareVectorInputPort("state", plant.num_multibody_states())
         self._act_dofs = {
