@@ -5,9 +5,12 @@
     python benchmarks/expert_success.py --tasks cook,jigsaw --seeds 0-9
     python benchmarks/expert_success.py --tasks jigsaw --randomize   # section "jigsaw (randomized)"
     python benchmarks/expert_success.py --tasks jigsaw --replay      # also the replay check
+    python benchmarks/expert_success.py --tasks cook --data /tmp/es  # keep the episodes there
 
 For each task, runs the library's ``generate()`` without rendering on every seed of the range
-(into a temporary directory, removed afterwards) and rewrites that task's section of the
+(into a temporary directory, removed afterwards, or with ``--data DIR`` into ``DIR/<task>``,
+kept: an interrupted run resumes there, and a later ``--replay`` replays them without
+generating again) and rewrites that task's section of the
 markdown file: kept / tried, each failed seed with its reason, mean episode length, wall time,
 the commit and whether the work tree had uncommitted changes, machine and date. With ``--replay``
 every kept episode is then replayed (its recorded actions, same seed and scene, no rendering)
@@ -66,6 +69,8 @@ class TaskResult:
     #: (replays that completed every stage, replays), when the replay check ran
     replay: tuple[int, int] | None = None
     replay_failures: list[tuple[int, str]] = field(default_factory=list)
+    #: the run continued episodes kept in an earlier run's data directory (--data)
+    resumed: bool = False
 
 
 def parse_seeds(text: str) -> range:
@@ -158,7 +163,9 @@ def format_section(r: TaskResult) -> str:
         "|---|---|",
         f"| commit | `{r.commit}`{' (dirty)' if r.dirty else ''} |",
         f"| mean length of kept episodes | {length} |",
-        f"| wall time | {r.wall_seconds / 60:.1f} min |",
+        f"| wall time | {r.wall_seconds / 60:.1f} min"
+        + (" (this run only: it resumed an earlier run's data)" if r.resumed else "")
+        + " |",
         *([f"| replay check of the kept episodes | {replay} |"] if replay else []),
         f"| date (UTC) | {r.date} |",
         f"| machine | {r.machine} |",
@@ -258,6 +265,7 @@ def run_task(
         randomize=randomize,
     )
     commit, dirty = git_state()
+    resumed = (work_dir / task / "manifest.json").exists()
     t0 = time.perf_counter()
     summary = generate(config)
     wall = time.perf_counter() - t0
@@ -278,6 +286,7 @@ def run_task(
         machine=machine(),
         replay=replayed[:2] if replayed else None,
         replay_failures=replayed[2] if replayed else [],
+        resumed=resumed,
     )
 
 
@@ -297,6 +306,12 @@ def main(argv: list[str] | None = None) -> int:
         action="store_true",
         help="then replay every kept episode and report how many reproduce every stage",
     )
+    parser.add_argument(
+        "--data",
+        type=Path,
+        help="keep the episodes under DATA/<task> (resumed if there) instead of a temporary "
+        "directory; a later run with --replay then replays them without generating again",
+    )
     args = parser.parse_args(argv)
 
     try:
@@ -312,8 +327,11 @@ def main(argv: list[str] | None = None) -> int:
     logging.getLogger("drake").setLevel(logging.ERROR)
     for task in tasks:
         print(f"{task}: seeds {seed_text(seeds)} ...", flush=True)
-        with tempfile.TemporaryDirectory(prefix=f"expert_success_{task}_") as tmp:
-            result = run_task(task, seeds, args.workers, Path(tmp), args.randomize, args.replay)
+        if args.data is not None:
+            result = run_task(task, seeds, args.workers, args.data, args.randomize, args.replay)
+        else:
+            with tempfile.TemporaryDirectory(prefix=f"expert_success_{task}_") as tmp:
+                result = run_task(task, seeds, args.workers, Path(tmp), args.randomize, args.replay)
         text = args.out.read_text() if args.out.exists() else ""
         write_atomic(args.out, update_markdown(text, {result.task: format_section(result)}))
         replayed = f", replay {result.replay[0]}/{result.replay[1]}" if result.replay else ""

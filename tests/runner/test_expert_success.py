@@ -180,3 +180,28 @@ def test_replay_option_replays_the_kept_episodes_of_the_run(es, tmp_path, monkey
     assert replayed["task"] == "jigsaw" and replayed["workers"] == 2
     assert replayed["data"].name == "jigsaw"
     assert "**1/2** reproduce every stage" in out.read_text()
+
+
+def test_data_option_keeps_the_episodes_and_marks_a_resumed_run(es, tmp_path, monkeypatch):
+    from types import SimpleNamespace
+
+    from bicoord_drake.runner import generate as gen
+
+    seen = []
+
+    def fake_generate(config):
+        seen.append(config.out)
+        manifest = Path(config.out) / config.task / "manifest.json"
+        manifest.parent.mkdir(parents=True, exist_ok=True)
+        manifest.write_text("{}")
+        return SimpleNamespace(kept=3, tried=3, failures=[], mean_length=9)
+
+    monkeypatch.setattr(gen, "generate", fake_generate)
+    monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
+    data, out = tmp_path / "data", tmp_path / "success.md"
+    argv = ["--tasks", "jigsaw", "--seeds", "0-2", "--data", str(data), "--out", str(out)]
+    assert es.main(argv) == 0
+    assert seen == [str(data)] and (data / "jigsaw" / "manifest.json").exists()
+    assert "resumed" not in out.read_text()
+    assert es.main(argv) == 0  # the second run continues the first one's directory
+    assert "(this run only: it resumed an earlier run's data)" in out.read_text()
