@@ -10,8 +10,7 @@ from bicoord_drake.config import StationConfig
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
-from bicoord_drake.stages.predicates import reset_predicate
-from bicoord_drake.tasks.base import check_task_class
+from tests.tasks.helpers import after, state_with
 
 LARGE, MIDDLE, SMALL = btb.BLOCKS
 SEED = 3
@@ -27,17 +26,11 @@ def scene(task):
     return task.sample_scene(SEED)
 
 
-def test_task_class_is_well_formed(task):
-    check_task_class(type(task))
-    assert task.step_limit == 800
-
-
-def test_scene_is_a_function_of_the_seed(task):
-    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
-    assert a == b and a != c
-    assert {o.name for o in a.free_objects} == set(btb.BLOCKS)
-    assert a.object("tower_spot").fixed and not a.object("tower_spot").collide
-    assert len({a.object(n).color for n in btb.BLOCKS}) == 3
+def test_scene_holds_the_task_objects(task):
+    scene = task.sample_scene(7)
+    assert {o.name for o in scene.free_objects} == set(btb.BLOCKS)
+    assert scene.object("tower_spot").fixed and not scene.object("tower_spot").collide
+    assert len({scene.object(n).color for n in btb.BLOCKS}) == 3
 
 
 @pytest.mark.parametrize("seed", range(25))
@@ -91,36 +84,16 @@ def _tower(scene, levels=(LARGE, MIDDLE, SMALL), offset=(0.0, 0.0)):
     return poses
 
 
-def _state(scene, poses, openings=(1.0, 1.0), contacts=None, step=0):
-    s = WorldState.initial(scene)
-    action = np.array(s.action)
-    action[6], action[13] = openings
-    return replace(
-        s,
-        object_poses={**s.object_poses, **poses},
-        action=action,
-        contacts=contacts or {},
-        step=step,
-        time=step / 15,
-    )
-
-
-def _after(pred, state, frames=8):
-    """`pred` after `frames` identical updates (stateful predicates see time pass)."""
-    reset_predicate(pred)
-    return [pred(replace(state, step=k, time=k / 15)) for k in range(frames)][-1]
-
-
 def test_large_cube_counts_at_the_spot_only_on_the_table_and_let_go(task, scene):
     at_spot = task.stages(scene)[1].predicate
     on_spot = _tower(scene, (LARGE,))
-    assert at_spot(_state(scene, on_spot))
+    assert at_spot(state_with(scene, on_spot))
     beside = _tower(scene, (LARGE,), offset=(0.04, 0.0))
-    assert not at_spot(_state(scene, beside))
+    assert not at_spot(state_with(scene, beside))
     held_above = {LARGE: on_spot[LARGE] + [0, 0, 0.03, 0, 0, 0, 0]}
-    assert not at_spot(_state(scene, held_above, (0.0, 1.0), {LARGE: {"left"}}))
+    assert not at_spot(state_with(scene, held_above, (0.0, 1.0), {LARGE: {"left"}}))
     # still gripped on the spot: not placed yet (the other arm's gripper may be closed)
-    assert not at_spot(_state(scene, on_spot, (0.0, 1.0), {LARGE: {"left"}}))
+    assert not at_spot(state_with(scene, on_spot, (0.0, 1.0), {LARGE: {"left"}}))
 
 
 def test_middle_cube_counts_on_the_large_one_let_go_while_the_small_is_held(task, scene):
@@ -128,40 +101,40 @@ def test_middle_cube_counts_on_the_large_one_let_go_while_the_small_is_held(task
     two = _tower(scene, (LARGE, MIDDLE))
     small_held = {SMALL: two[MIDDLE] + [0.15, 0.1, 0.1, 0, 0, 0, 0]}
     holding = {SMALL: {"right"}}
-    assert middle(_state(scene, {**two, **small_held}, (1.0, 0.0), holding))
+    assert middle(state_with(scene, {**two, **small_held}, (1.0, 0.0), holding))
     # still gripped
     touched = {**holding, MIDDLE: {"left"}}
-    assert not middle(_state(scene, {**two, **small_held}, (0.0, 0.0), touched))
+    assert not middle(state_with(scene, {**two, **small_held}, (0.0, 0.0), touched))
     # beside the large cube, on the table
     beside = {**two, MIDDLE: np.r_[two[LARGE][:2] + [0.07, 0.0], TABLE_TOP + 0.025, 1, 0, 0, 0]}
-    assert not middle(_state(scene, beside))
+    assert not middle(state_with(scene, beside))
     # the pair built off the spot
-    assert not middle(_state(scene, _tower(scene, (LARGE, MIDDLE), offset=(0.05, 0.0))))
+    assert not middle(state_with(scene, _tower(scene, (LARGE, MIDDLE), offset=(0.05, 0.0))))
     # toppled: the middle cube leaning on an edge against the large one
     q = (np.cos(np.pi / 8), 0.0, np.sin(np.pi / 8), 0.0)
     leaning = {**two, MIDDLE: np.r_[two[MIDDLE][:3] + [0.0, 0.0, 0.008], q]}
-    assert not middle(_state(scene, leaning))
+    assert not middle(state_with(scene, leaning))
 
 
 def test_tower_counts_only_complete_in_order_released_and_settled(task, scene):
     last = task.stages(scene)[4].predicate
     tower = _tower(scene)
-    assert _after(last, _state(scene, tower))
-    assert not _after(last, _state(scene, tower), frames=4)  # not yet at rest for 0.3 s
+    assert after(last, state_with(scene, tower))
+    assert not after(last, state_with(scene, tower), frames=4)  # not yet at rest for 0.3 s
     # the small cube still held on top
-    assert not _after(last, _state(scene, tower, (1.0, 0.0), {SMALL: {"right"}}))
+    assert not after(last, state_with(scene, tower, (1.0, 0.0), {SMALL: {"right"}}))
     # wrong order: small on the large cube, middle on the small one
     wrong = _tower(scene, (LARGE, SMALL, MIDDLE))
-    assert not _after(last, _state(scene, wrong))
+    assert not after(last, state_with(scene, wrong))
     # dropped: the small cube fell beside the tower
     dropped = {**tower, SMALL: np.r_[tower[LARGE][:2] + [0.0, 0.08], TABLE_TOP + 0.017, 1, 0, 0, 0]}
-    assert not _after(last, _state(scene, dropped))
+    assert not after(last, state_with(scene, dropped))
 
 
 def test_stages_count_only_in_order(task, scene):
     """A finished tower seen without the earlier stages scores nothing."""
     monitor = StageMonitor(task.stages(scene))
-    tower = _state(scene, _tower(scene))
+    tower = state_with(scene, _tower(scene))
     for k in range(10):
         monitor.update(replace(tower, step=k, time=k / 15))
     monitor.finish(replace(tower, step=10, time=10 / 15))

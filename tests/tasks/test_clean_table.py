@@ -14,13 +14,11 @@ from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.stages.predicates import (
     centre,
     local_bounds,
-    reset_predicate,
     world_corners,
     world_hull_points,
 )
-from bicoord_drake.tasks import TASK_MODULES, get_task
-from bicoord_drake.tasks.base import check_task_class
 from tests.stages.helpers import quat_about
+from tests.tasks.helpers import after, state_with
 
 O1, O2, O3, O4 = ct.OBJECTS
 SEED = 1
@@ -36,22 +34,10 @@ def scene(task):
     return task.sample_scene(SEED)
 
 
-def test_task_is_registered():
-    assert "clean_table" in TASK_MODULES
-    assert isinstance(get_task("clean_table"), ct.CleanTable)
-
-
-def test_task_class_is_well_formed(task):
-    check_task_class(type(task))
-    assert task.step_limit == 1000
-    assert len(task.instructions("seen")) + len(task.instructions("unseen")) >= 10
-
-
-def test_scene_is_a_function_of_the_seed(task):
-    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
-    assert a == b and a != c
-    assert {o.name for o in a.free_objects} == set(ct.OBJECTS)
-    assert a.object("bin").fixed and a.object("bin").collide
+def test_scene_holds_the_task_objects(task):
+    scene = task.sample_scene(7)
+    assert {o.name for o in scene.free_objects} == set(ct.OBJECTS)
+    assert scene.object("bin").fixed and scene.object("bin").collide
 
 
 @pytest.mark.parametrize("seed", range(25))
@@ -105,51 +91,33 @@ def _in_bin(k: int, scene) -> np.ndarray:
     return np.array([ct.BIN_XY[0] + dx, ct.BIN_XY[1] + dy, z, 1.0, 0, 0, 0])
 
 
-def _state(scene, poses, openings=(1.0, 1.0), contacts=None, step=0):
-    s = WorldState.initial(scene)
-    action = np.array(s.action)
-    action[6], action[13] = openings
-    return replace(
-        s,
-        object_poses={**s.object_poses, **poses},
-        action=action,
-        contacts=contacts or {},
-        step=step,
-        time=step / 15,
-    )
-
-
-def _after(pred, state, frames=8):
-    """`pred` after `frames` identical updates (stateful predicates see time pass)."""
-    reset_predicate(pred)
-    return [pred(replace(state, step=k, time=k / 15)) for k in range(frames)][-1]
-
-
 def test_an_object_in_the_bin_counts_and_one_beside_or_on_the_rim_does_not(scene):
     one = ct.in_bin_count(1)
-    assert one(_state(scene, {O1: _in_bin(0, scene)}))
+    assert one(state_with(scene, {O1: _in_bin(0, scene)}))
     # beside the bin, on the table
     beside = _in_bin(0, scene).copy()
     beside[0] = ct.BIN_XY[0] - ct.BIN.size[0] / 2 - 0.05
     beside[2] -= ct.BIN.wall
-    assert not one(_state(scene, {O1: beside}))
+    assert not one(state_with(scene, {O1: beside}))
     # lying across the rim: centre over the wall, above the rim
     rim = _in_bin(0, scene).copy()
     rim[0] = ct.BIN_XY[0] - ct.BIN.size[0] / 2
     rim[2] = TABLE_TOP + ct.BIN.size[2] + 0.01
-    assert not one(_state(scene, {O1: rim}))
+    assert not one(state_with(scene, {O1: rim}))
     # over the opening but above the rim (still falling, or held above it)
     high = _in_bin(0, scene).copy()
     high[2] = TABLE_TOP + ct.BIN.size[2] + 0.03
-    assert not one(_state(scene, {O1: high}))
+    assert not one(state_with(scene, {O1: high}))
 
 
 def test_an_object_held_inside_the_bin_does_not_count(scene):
     one = ct.in_bin_count(1)
-    held = _state(scene, {O1: _in_bin(0, scene)}, openings=(0.0, 1.0), contacts={O1: {"left"}})
+    held = state_with(scene, {O1: _in_bin(0, scene)}, openings=(0.0, 1.0), contacts={O1: {"left"}})
     assert not one(held)
     # let go (the other gripper still holds something else): counts
-    other = _state(scene, {O1: _in_bin(0, scene)}, openings=(1.0, 0.0), contacts={O2: {"right"}})
+    other = state_with(
+        scene, {O1: _in_bin(0, scene)}, openings=(1.0, 0.0), contacts={O2: {"right"}}
+    )
     assert one(other)
 
 
@@ -161,47 +129,47 @@ def test_a_tilted_loaf_leaning_in_the_bin_counts_but_not_beside_it(scene):
     assert scene.draws["kinds"][3] == "bread"
     quat = np.array([0.406, 0.808, -0.244, -0.35])
     pose = np.r_[0.007, -0.078, 0.799, quat / np.linalg.norm(quat)]
-    st = _state(scene, {O4: pose})
+    st = state_with(scene, {O4: pose})
     assert world_corners(st, O4)[:, 2].min() < TABLE_TOP  # the box corner: below the table
     assert world_hull_points(st, O4)[:, 2].min() > TABLE_TOP + ct.BIN.wall - 0.002
     assert ct.in_bin(O4)(st)
     drop = world_hull_points(st, O4)[:, 2].min() - TABLE_TOP
     beside = pose.copy()
     beside[:3] += [0.25, 0.0, -drop]
-    assert not ct.in_bin(O4)(_state(scene, {O4: beside}))
+    assert not ct.in_bin(O4)(state_with(scene, {O4: beside}))
 
 
 def test_counts_need_that_many_distinct_objects(scene):
     poses = {ct.OBJECTS[k]: _in_bin(k, scene) for k in range(3)}
-    assert ct.in_bin_count(3)(_state(scene, poses))
-    assert not ct.in_bin_count(4)(_state(scene, poses))
+    assert ct.in_bin_count(3)(state_with(scene, poses))
+    assert not ct.in_bin_count(4)(state_with(scene, poses))
 
 
 def test_last_stage_needs_all_four_released_and_at_rest(task, scene):
     last = task.stages(scene)[-1].predicate
     four = {ct.OBJECTS[k]: _in_bin(k, scene) for k in range(4)}
-    assert _after(last, _state(scene, four))
+    assert after(last, state_with(scene, four))
     # a gripper still closed (commanded), even touching nothing
-    assert not _after(last, _state(scene, four, openings=(0.0, 1.0)))
+    assert not after(last, state_with(scene, four, openings=(0.0, 1.0)))
     # a finger still on the last object
-    assert not _after(last, _state(scene, four, contacts={O4: {"right"}}))
+    assert not after(last, state_with(scene, four, contacts={O4: {"right"}}))
     # one bounced out onto the table
     out = {**four, O4: np.r_[0.2, 0.1, TABLE_TOP + 0.03, 1, 0, 0, 0]}
-    assert not _after(last, _state(scene, out))
+    assert not after(last, state_with(scene, out))
     # still moving
     moving = replace(
-        _state(scene, four),
+        state_with(scene, four),
         object_velocities={
             **WorldState.initial(scene).object_velocities,
             O3: np.r_[0.0, 0.0, -0.3, 0, 0, 0],
         },
     )
-    assert not _after(last, moving)
+    assert not after(last, moving)
     # toppled inside the bin still counts (a bin holds objects any way up)
     lo, _ = local_bounds(scene.object(O2).shape)
     floor = TABLE_TOP + ct.BIN.wall
     tipped = {**four, O2: np.r_[four[O2][:2], floor - lo[1] + 0.001, quat_about("x", np.pi / 2)]}
-    assert _after(last, _state(scene, tipped))
+    assert after(last, state_with(scene, tipped))
 
 
 def test_centre_of_a_compound_object_is_its_middle_not_its_bottom(task):
@@ -215,7 +183,7 @@ def test_centre_of_a_compound_object_is_its_middle_not_its_bottom(task):
 def test_stages_count_only_in_order(task, scene):
     """All four in the bin seen without the objects ever lifted scores nothing."""
     monitor = StageMonitor(task.stages(scene))
-    four = _state(scene, {ct.OBJECTS[k]: _in_bin(k, scene) for k in range(4)})
+    four = state_with(scene, {ct.OBJECTS[k]: _in_bin(k, scene) for k in range(4)})
     for k in range(10):
         monitor.update(replace(four, step=k, time=k / 15))
     monitor.finish(replace(four, step=10, time=10 / 15))
@@ -230,9 +198,9 @@ def test_a_bounced_out_object_stops_counting_at_the_end(task, scene):
         O2: np.r_[scene.object(O2).pose.xyz[:2], scene.object(O2).pose.xyz[2] + 0.1, 1, 0, 0, 0],
     }
     two = {O1: _in_bin(0, scene), O2: _in_bin(1, scene)}
-    seq = [_state(scene, lifted, openings=(0.0, 0.0))] * 3 + [_state(scene, two)] * 3
+    seq = [state_with(scene, lifted, openings=(0.0, 0.0))] * 3 + [state_with(scene, two)] * 3
     out = {**two, O2: np.r_[0.2, 0.1, TABLE_TOP + 0.03, 1, 0, 0, 0]}
-    seq += [_state(scene, out)] * 3
+    seq += [state_with(scene, out)] * 3
     for k, s in enumerate(seq):
         monitor.update(replace(s, step=k, time=k / 15))
     monitor.finish(replace(seq[-1], step=len(seq), time=len(seq) / 15))

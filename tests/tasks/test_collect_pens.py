@@ -12,10 +12,9 @@ from bicoord_drake.models.pens import PenShape
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
-from bicoord_drake.stages.predicates import reset_predicate, tilt
-from bicoord_drake.tasks import TASK_MODULES, get_task
-from bicoord_drake.tasks.base import check_task_class
+from bicoord_drake.stages.predicates import tilt
 from tests.stages.helpers import quat_about
+from tests.tasks.helpers import after, quat_mul, state_with
 
 P1, P2, P3, P4 = cp.PENS
 SEED = 1
@@ -32,23 +31,11 @@ def scene(task):
     return task.sample_scene(SEED)
 
 
-def test_task_is_registered():
-    assert "collect_pens" in TASK_MODULES
-    assert isinstance(get_task("collect_pens"), cp.CollectPens)
-
-
-def test_task_class_is_well_formed(task):
-    check_task_class(type(task))
-    assert task.step_limit == 900
-    assert len(task.instructions("seen")) + len(task.instructions("unseen")) >= 10
-
-
-def test_scene_is_a_function_of_the_seed(task):
-    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
-    assert a == b and a != c
-    assert {o.name for o in a.free_objects} == set(cp.PENS)
-    assert a.object("holder").fixed and a.object("holder").collide
-    assert list(a.object("holder").pose.xyz[:2]) == list(cp.HOLDER_XY)
+def test_scene_holds_the_task_objects(task):
+    scene = task.sample_scene(7)
+    assert {o.name for o in scene.free_objects} == set(cp.PENS)
+    assert scene.object("holder").fixed and scene.object("holder").collide
+    assert list(scene.object("holder").pose.xyz[:2]) == list(cp.HOLDER_XY)
 
 
 @pytest.mark.parametrize("seed", range(25))
@@ -109,38 +96,8 @@ def _standing(k: int, scene, lean: float = math.radians(20)) -> np.ndarray:
     q = quat_about("z", yaw)
     w, x, y, z = q
     r = (math.cos(lean / 2), 0.0, math.sin(lean / 2), 0.0)  # about y, then yaw about z
-    quat = _mul((w, x, y, z), r)
+    quat = quat_mul((w, x, y, z), r)
     return np.r_[c, quat]
-
-
-def _mul(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return (
-        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-    )
-
-
-def _state(scene, poses, openings=(1.0, 1.0), contacts=None, step=0):
-    s = WorldState.initial(scene)
-    action = np.array(s.action)
-    action[6], action[13] = openings
-    return replace(
-        s,
-        object_poses={**s.object_poses, **poses},
-        action=action,
-        contacts=contacts or {},
-        step=step,
-        time=step / 15,
-    )
-
-
-def _after(pred, state, frames=8):
-    reset_predicate(pred)
-    return [pred(replace(state, step=k, time=k / 15)) for k in range(frames)][-1]
 
 
 def _limit(scene):
@@ -148,7 +105,7 @@ def _limit(scene):
 
 
 def test_synthetic_standing_pose_has_its_tip_on_the_floor(scene):
-    st = _state(scene, {P1: _standing(0, scene)})
+    st = state_with(scene, {P1: _standing(0, scene)})
     shape = scene.object(P1).shape
     tip = st.rotation(P1) @ shape.tip_point() + st.position(P1)
     assert tip[2] == pytest.approx(FLOOR)
@@ -157,27 +114,29 @@ def test_synthetic_standing_pose_has_its_tip_on_the_floor(scene):
 
 def test_a_pen_standing_in_the_holder_counts_and_one_beside_or_across_it_does_not(scene):
     one = cp.in_holder_count(1, _limit(scene))
-    assert one(_state(scene, {P1: _standing(0, scene)}))
+    assert one(state_with(scene, {P1: _standing(0, scene)}))
     # beside the holder, lying on the table (where it started)
-    assert not one(_state(scene, {}))
+    assert not one(state_with(scene, {}))
     # lying across the opening (tip just inside, nearly flat)
-    assert not one(_state(scene, {P1: _standing(0, scene, math.radians(75))}))
+    assert not one(state_with(scene, {P1: _standing(0, scene, math.radians(75))}))
     # the same pen stood next to the holder on the table
     beside = _standing(0, scene).copy()
     beside[:3] += [0.15, 0.0, -cp.HOLDER.wall]
-    assert not one(_state(scene, {P1: beside}))
+    assert not one(state_with(scene, {P1: beside}))
     # upside down: back end on the floor
     flipped = _standing(0, scene, 0.0).copy()
     flipped[3:] = quat_about("x", math.pi)
-    assert not one(_state(scene, {P1: flipped}))
+    assert not one(state_with(scene, {P1: flipped}))
 
 
 def test_a_pen_held_in_the_holder_or_still_moving_does_not_count(scene):
     one = cp.in_holder_count(1, _limit(scene))
-    held = _state(scene, {P1: _standing(0, scene)}, openings=(0.0, 1.0), contacts={P1: {"left"}})
+    held = state_with(
+        scene, {P1: _standing(0, scene)}, openings=(0.0, 1.0), contacts={P1: {"left"}}
+    )
     assert not one(held)
     moving = replace(
-        _state(scene, {P1: _standing(0, scene)}),
+        state_with(scene, {P1: _standing(0, scene)}),
         object_velocities={
             **WorldState.initial(scene).object_velocities,
             P1: np.r_[0.0, 0.0, -0.3, 0, 0, 0],
@@ -185,31 +144,33 @@ def test_a_pen_held_in_the_holder_or_still_moving_does_not_count(scene):
     )
     assert not one(moving)
     # let go while the other gripper holds its pen: counts
-    other = _state(scene, {P1: _standing(0, scene)}, openings=(1.0, 0.0), contacts={P2: {"right"}})
+    other = state_with(
+        scene, {P1: _standing(0, scene)}, openings=(1.0, 0.0), contacts={P2: {"right"}}
+    )
     assert one(other)
 
 
 def test_counts_need_that_many_distinct_pens(scene):
     poses = {cp.PENS[k]: _standing(k, scene) for k in range(3)}
     limit = _limit(scene)
-    assert cp.in_holder_count(3, limit)(_state(scene, poses))
-    assert not cp.in_holder_count(4, limit)(_state(scene, poses))
+    assert cp.in_holder_count(3, limit)(state_with(scene, poses))
+    assert not cp.in_holder_count(4, limit)(state_with(scene, poses))
 
 
 def test_last_stage_needs_all_four_released_and_at_rest(task, scene):
     last = task.stages(scene)[-1].predicate
     four = {cp.PENS[k]: _standing(k, scene) for k in range(4)}
-    assert _after(last, _state(scene, four))
-    assert not _after(last, _state(scene, four, openings=(0.0, 1.0)))
-    assert not _after(last, _state(scene, four, contacts={P4: {"right"}}))
+    assert after(last, state_with(scene, four))
+    assert not after(last, state_with(scene, four, openings=(0.0, 1.0)))
+    assert not after(last, state_with(scene, four, contacts={P4: {"right"}}))
     fallen = {**four, P4: np.r_[0.2, 0.1, TABLE_TOP + 0.008, quat_about("y", math.pi / 2)]}
-    assert not _after(last, _state(scene, fallen))
+    assert not after(last, state_with(scene, fallen))
 
 
 def test_stages_count_only_in_order(task, scene):
     """All four in the holder seen without the pens ever lifted scores nothing."""
     monitor = StageMonitor(task.stages(scene))
-    four = _state(scene, {cp.PENS[k]: _standing(k, scene) for k in range(4)})
+    four = state_with(scene, {cp.PENS[k]: _standing(k, scene) for k in range(4)})
     for k in range(10):
         monitor.update(replace(four, step=k, time=k / 15))
     monitor.finish(replace(four, step=10, time=10 / 15))
@@ -224,7 +185,7 @@ def _both_picked(scene):
         n: np.r_[scene.object(n).pose.xyz[:2], scene.object(n).pose.xyz[2] + 0.1, 1, 0, 0, 0]
         for n in (P1, P2)
     }
-    return _state(scene, up, openings=(0.0, 0.0), contacts={P1: {first}, P2: {second}})
+    return state_with(scene, up, openings=(0.0, 0.0), contacts={P1: {first}, P2: {second}})
 
 
 def test_first_stage_needs_both_pens_up_in_their_arms_grippers(task, scene):
@@ -242,9 +203,9 @@ def test_first_stage_needs_both_pens_up_in_their_arms_grippers(task, scene):
 def test_a_pen_that_falls_out_stops_counting_at_the_end(task, scene):
     monitor = StageMonitor(task.stages(scene))
     two = {P1: _standing(0, scene), P2: _standing(1, scene)}
-    seq = [_both_picked(scene)] * 3 + [_state(scene, two)] * 3
+    seq = [_both_picked(scene)] * 3 + [state_with(scene, two)] * 3
     out = {**two, P2: np.r_[0.2, 0.1, TABLE_TOP + 0.008, quat_about("y", math.pi / 2)]}
-    seq += [_state(scene, out)] * 3
+    seq += [state_with(scene, out)] * 3
     for k, s in enumerate(seq):
         monitor.update(replace(s, step=k, time=k / 15))
     monitor.finish(replace(seq[-1], step=len(seq), time=len(seq) / 15))

@@ -9,7 +9,6 @@ from bicoord_drake.config import StationConfig
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.tasks import get_task
-from bicoord_drake.tasks.base import check_task_class
 
 
 @pytest.fixture(scope="module")
@@ -24,17 +23,11 @@ def task():
     return get_task("cook")
 
 
-def test_task_class_is_well_formed(task):
-    check_task_class(type(task))
-    assert task.step_limit == 1000
-    assert len(task.instructions("seen")) + len(task.instructions("unseen")) >= 10
-
-
-def test_scene_is_a_function_of_the_seed(cook, task):
-    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
-    assert a == b and a != c
-    assert {o.name for o in a.free_objects} == {*cook.ROLLS, "skillet"}
-    assert a.object("plate").fixed and a.object("stove").fixed and not a.object("stove").collide
+def test_scene_holds_the_task_objects_in_their_ranges(cook, task):
+    scene = task.sample_scene(7)
+    assert {o.name for o in scene.free_objects} == {*cook.ROLLS, "skillet"}
+    assert scene.object("plate").fixed and scene.object("stove").fixed
+    assert not scene.object("stove").collide
     for seed in range(20):
         s = task.sample_scene(seed)
         rolls = [np.array(s.object(r).pose.xyz) for r in cook.ROLLS]

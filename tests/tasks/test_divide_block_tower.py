@@ -12,7 +12,7 @@ from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.stages.predicates import reset_predicate
-from bicoord_drake.tasks.base import check_task_class
+from tests.tasks.helpers import state_with
 
 C0, C1, C2, C3 = dbt.CUBES
 TILTED = (np.cos(np.pi / 8), 0.0, np.sin(np.pi / 8), 0.0)  # 45 deg about y
@@ -39,18 +39,12 @@ def same(task):
     return task.sample_scene(_seed_with(task, "BBAA"))
 
 
-def test_task_class_is_well_formed(task):
-    check_task_class(type(task))
-    assert task.step_limit == 1000
-
-
-def test_scene_is_a_function_of_the_seed(task):
-    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
-    assert a == b and a != c
-    assert [o.name for o in a.free_objects] == list(dbt.CUBES)
-    assert a.object("base").fixed and a.object("base").shape.size == dbt.BASE_SIZE
+def test_scene_holds_the_task_objects(task):
+    scene = task.sample_scene(7)
+    assert [o.name for o in scene.free_objects] == list(dbt.CUBES)
+    assert scene.object("base").fixed and scene.object("base").shape.size == dbt.BASE_SIZE
     for sign in ("sign_a", "sign_b"):
-        assert a.object(sign).fixed and not a.object(sign).collide
+        assert scene.object(sign).fixed and not scene.object(sign).collide
 
 
 @pytest.mark.parametrize("seed", range(25))
@@ -138,20 +132,6 @@ def _colour(scene, k):
     return [c for c, kk in zip(dbt.CUBES, scene.draws["order"], strict=True) if kk == k.upper()]
 
 
-def _state(scene, poses, openings=(1.0, 1.0), contacts=None, step=0):
-    s = WorldState.initial(scene)
-    action = np.array(s.action)
-    action[6], action[13] = openings
-    return replace(
-        s,
-        object_poses={**s.object_poses, **poses},
-        action=action,
-        contacts=contacts or {},
-        step=step,
-        time=step / 15,
-    )
-
-
 def _after(pred, states, frames=8):
     """`pred` after the `states` in turn, the last repeated for `frames` updates."""
     reset_predicate(pred)
@@ -167,47 +147,47 @@ def test_top_two_taken_only_off_the_tower_and_the_rest_in_place(task, mixed):
     take = task.stages(mixed)[0].predicate
     both_up = {C3: _lifted(mixed, C3, 0.10), C2: _lifted(mixed, C2, 0.05, dx=0.1)}
     held = {C3: {"right"}, C2: {"left"}}
-    assert _after(take, [_state(mixed, both_up, (0.0, 0.0), held)], 1)
+    assert _after(take, [state_with(mixed, both_up, (0.0, 0.0), held)], 1)
     # only the top one lifted
-    assert not _after(take, [_state(mixed, {C3: both_up[C3]}, (1.0, 0.0), held)], 1)
+    assert not _after(take, [state_with(mixed, {C3: both_up[C3]}, (1.0, 0.0), held)], 1)
     # the two lifted together (the second still under the first): 2 cm is not off the tower
     together = {C3: _lifted(mixed, C3, 0.02), C2: _lifted(mixed, C2, 0.02)}
-    assert not _after(take, [_state(mixed, together)], 1)
+    assert not _after(take, [state_with(mixed, together)], 1)
     # the tower below toppled as they were taken
     knocked = {**both_up, C1: _lifted(mixed, C1, -0.05, dx=0.06)}
-    assert not _after(take, [_state(mixed, knocked)], 1)
+    assert not _after(take, [state_with(mixed, knocked)], 1)
     shifted = {**both_up, C0: _lifted(mixed, C0, 0.0, dx=0.012)}
-    assert not _after(take, [_state(mixed, shifted)], 1)
+    assert not _after(take, [state_with(mixed, shifted)], 1)
     # lifted one after the other (the first already set on its sign): taken
-    first = _state(mixed, {C3: both_up[C3]})
+    first = state_with(mixed, {C3: both_up[C3]})
     on_signs = {**_sign_tower(mixed, [C3], "b"), C2: both_up[C2]}
-    assert _after(take, [first, _state(mixed, on_signs)], 1)
+    assert _after(take, [first, state_with(mixed, on_signs)], 1)
     # knocked off the tower onto the table without ever being lifted: not taken
     fallen = {C3: np.r_[_initial(mixed, C3)[:2] + [0.1, 0], TABLE_TOP + 0.025, 1, 0, 0, 0]}
-    assert not _after(take, [_state(mixed, {**fallen, C2: both_up[C2]})], 1)
+    assert not _after(take, [state_with(mixed, {**fallen, C2: both_up[C2]})], 1)
 
 
 def test_sort_counts_each_cube_on_its_own_sign(task, mixed):
     sort = task.stages(mixed)[1].predicate
     top_b, top_a = C3, C2  # mixed is A B A B bottom first
     both = {**_sign_tower(mixed, [top_a], "a"), **_sign_tower(mixed, [top_b], "b")}
-    assert _after(sort, [_state(mixed, both)]) == 1.0
+    assert _after(sort, [state_with(mixed, both)]) == 1.0
     # one still held above its sign: half the credit
     held = {**both, top_b: both[top_b] + [0, 0, 0.03, 0, 0, 0, 0]}
-    assert _after(sort, [_state(mixed, held, (1.0, 0.0), {top_b: {"right"}})]) == 0.5
+    assert _after(sort, [state_with(mixed, held, (1.0, 0.0), {top_b: {"right"}})]) == 0.5
     # set down but still gripped
-    assert _after(sort, [_state(mixed, both, (1.0, 0.0), {top_b: {"right"}})]) == 0.5
+    assert _after(sort, [state_with(mixed, both, (1.0, 0.0), {top_b: {"right"}})]) == 0.5
     # swapped signs: neither counts
     swapped = {**_sign_tower(mixed, [top_a], "b"), **_sign_tower(mixed, [top_b], "a")}
-    assert _after(sort, [_state(mixed, swapped)]) == 0.0
+    assert _after(sort, [state_with(mixed, swapped)]) == 0.0
     # beside its sign
     beside = {**both, top_a: both[top_a] + [0.045, 0, 0, 0, 0, 0, 0]}
-    assert _after(sort, [_state(mixed, beside)]) == 0.5
+    assert _after(sort, [state_with(mixed, beside)]) == 0.5
     # toppled on its sign: on an edge
     tipped = {**both, top_a: np.r_[both[top_a][:2], TABLE_TOP + 0.03, TILTED]}
-    assert _after(sort, [_state(mixed, tipped)]) == 0.5
+    assert _after(sort, [state_with(mixed, tipped)]) == 0.5
     # still moving
-    moving = _state(mixed, both)
+    moving = state_with(mixed, both)
     moving = replace(moving, object_velocities={**moving.object_velocities, top_a: [0.1] + [0] * 5})
     assert _after(sort, [moving]) == 0.5
 
@@ -216,9 +196,9 @@ def test_last_two_taken(task, mixed):
     take = task.stages(mixed)[2].predicate
     placed = {**_sign_tower(mixed, [C2], "a"), **_sign_tower(mixed, [C3], "b")}
     up = {C1: _lifted(mixed, C1, 0.08), C0: _lifted(mixed, C0, 0.05, dx=-0.1)}
-    assert _after(take, [_state(mixed, {**placed, **up})], 1)
-    assert not _after(take, [_state(mixed, {**placed, C1: up[C1]})], 1)
-    assert not _after(take, [_state(mixed, placed)], 1)
+    assert _after(take, [state_with(mixed, {**placed, **up})], 1)
+    assert not _after(take, [state_with(mixed, {**placed, C1: up[C1]})], 1)
+    assert not _after(take, [state_with(mixed, placed)], 1)
 
 
 def test_stacks_score_per_cube_and_per_tower_released_and_settled(task, same):
@@ -226,18 +206,18 @@ def test_stacks_score_per_cube_and_per_tower_released_and_settled(task, same):
     a, b = _colour(same, "a"), _colour(same, "b")  # same is B B A A: a = [C2, C3], b = [C0, C1]
     # the A tower as the expert builds it (top cube first on the sign), the B tower likewise
     done = {**_sign_tower(same, [C3, C2], "a"), **_sign_tower(same, [C1, C0], "b")}
-    assert _after(stack, [_state(same, done)]) == 1.0
+    assert _after(stack, [state_with(same, done)]) == 1.0
     # not yet at rest for 0.3 s: only the two cubes count, not the towers
-    assert _after(stack, [_state(same, done)], frames=3) == pytest.approx(2 / 6)
+    assert _after(stack, [state_with(same, done)], frames=3) == pytest.approx(2 / 6)
     # the last cube still held on its tower: only C1 counts (a gripper closed: nothing is
     # released yet, so neither tower counts)
-    held = _state(same, done, (1.0, 0.0), {C0: {"right"}})
+    held = state_with(same, done, (1.0, 0.0), {C0: {"right"}})
     assert _after(stack, [held]) == pytest.approx(1 / 6)
     # a gripper still closed (on nothing): no tower counts as released
-    assert _after(stack, [_state(same, done, (0.0, 1.0))]) == pytest.approx(2 / 6)
+    assert _after(stack, [state_with(same, done, (0.0, 1.0))]) == pytest.approx(2 / 6)
     # colours mixed: each sign holds one of each
     mixed_up = {**_sign_tower(same, [a[0], b[0]], "a"), **_sign_tower(same, [b[1], a[1]], "b")}
-    assert _after(stack, [_state(same, mixed_up)]) == pytest.approx(1 / 6)
+    assert _after(stack, [state_with(same, mixed_up)]) == pytest.approx(1 / 6)
     # the A cubes side by side, not stacked (C2 also off its sign), the B tower done
     apart = {
         **_sign_tower(same, [C3], "a"),
@@ -247,17 +227,17 @@ def test_stacks_score_per_cube_and_per_tower_released_and_settled(task, same):
     apart[C2] = apart[C3] + [0.0, 0.0, 0.0, 0, 0, 0, 0]
     apart[C2][0] += 0.05
     apart[C2][2] = TABLE_TOP + _edge(same, C2) / 2
-    assert _after(stack, [_state(same, apart)]) == pytest.approx((1 + 1 + 2) / 6)
+    assert _after(stack, [state_with(same, apart)]) == pytest.approx((1 + 1 + 2) / 6)
     # a tower on the wrong sign
     wrong = {**_sign_tower(same, [C3, C2], "b"), **_sign_tower(same, [C1, C0], "a")}
-    assert _after(stack, [_state(same, wrong)]) == 0.0
+    assert _after(stack, [state_with(same, wrong)]) == 0.0
 
 
 def test_stages_count_only_in_order(task, same):
     """The finished towers seen without the earlier stages score nothing."""
     monitor = StageMonitor(task.stages(same))
     done = {**_sign_tower(same, [C3, C2], "a"), **_sign_tower(same, [C1, C0], "b")}
-    final = _state(same, done)
+    final = state_with(same, done)
     for k in range(10):
         monitor.update(replace(final, step=k, time=k / 15))
     monitor.finish(replace(final, step=10, time=10 / 15))
@@ -283,7 +263,7 @@ def test_the_same_colour_order_runs_through_every_stage(task, same):
     k = 0
     for poses in frames:
         for _ in range(6):
-            monitor.update(_state(same, poses, step=k))
+            monitor.update(state_with(same, poses, step=k))
             k += 1
     monitor.finish()
     assert monitor.completed() == [True] * 4 and monitor.score() == pytest.approx(1.0)

@@ -14,9 +14,8 @@ from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import SkillContext
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
-from bicoord_drake.stages.predicates import reset_predicate
-from bicoord_drake.tasks.base import check_task_class
 from tests.stages.helpers import quat_about
+from tests.tasks.helpers import after, state_with
 
 FLAT = (1.0, 0.0, 0.0, 0.0)
 BOTH = {"left", "right"}
@@ -30,11 +29,6 @@ def task():
 @pytest.fixture(scope="module")
 def scene(task):
     return task.sample_scene(4)
-
-
-def test_task_class_is_well_formed(task):
-    check_task_class(type(task))
-    assert task.step_limit == 900
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -54,27 +48,8 @@ def test_scene_draws_pots_near_their_spots(task, seed):
     assert spots["park"][0] - spots[ep.POT_1][0] == pytest.approx(ep.PARK_DX)
 
 
-def _state(scene, poses, openings=(1.0, 1.0), contacts=None, step=0):
-    s = WorldState.initial(scene)
-    action = np.array(s.action)
-    action[6], action[13] = openings
-    return replace(
-        s,
-        object_poses={**s.object_poses, **poses},
-        action=action,
-        contacts=contacts or {},
-        step=step,
-        time=step / 15,
-    )
-
-
 def _at(xy, dz=0.0, quat=FLAT):
     return np.array([xy[0], xy[1], TABLE_TOP + dz, *quat])
-
-
-def _after(pred, state, frames=8):
-    reset_predicate(pred)
-    return [pred(replace(state, step=k, time=k / 15)) for k in range(frames)][-1]
 
 
 def test_initial_state_scores_nothing(task, scene):
@@ -89,39 +64,39 @@ def test_lifts_need_both_hands_and_the_height(task, scene):
     stages = task.stages(scene)
     spots = task.spots(scene)
     up = {ep.POT_1: _at(spots[ep.POT_1], 0.05)}
-    assert stages[0].predicate(_state(scene, up, (0, 0), {ep.POT_1: BOTH}))
-    assert not stages[0].predicate(_state(scene, up, (0, 1), {ep.POT_1: {"left"}}))
+    assert stages[0].predicate(state_with(scene, up, (0, 0), {ep.POT_1: BOTH}))
+    assert not stages[0].predicate(state_with(scene, up, (0, 1), {ep.POT_1: {"left"}}))
     # pot 2 must be raised (18 cm), not just lifted
     low = {ep.POT_2: _at(spots[ep.POT_2], 0.05)}
     high = {ep.POT_2: _at(spots[ep.POT_2], 0.2)}
-    assert not stages[2].predicate(_state(scene, low, (0, 0), {ep.POT_2: BOTH}))
-    assert stages[2].predicate(_state(scene, high, (0, 0), {ep.POT_2: BOTH}))
+    assert not stages[2].predicate(state_with(scene, low, (0, 0), {ep.POT_2: BOTH}))
+    assert stages[2].predicate(state_with(scene, high, (0, 0), {ep.POT_2: BOTH}))
 
 
 def test_placements_count_released_upright_at_the_spot(task, scene):
     stages = task.stages(scene)
     spots = task.spots(scene)
     parked = {ep.POT_1: _at(spots["park"])}
-    assert stages[1].predicate(_state(scene, parked))
-    assert not stages[1].predicate(_state(scene, parked, (0, 0), {ep.POT_1: BOTH}))  # held
+    assert stages[1].predicate(state_with(scene, parked))
+    assert not stages[1].predicate(state_with(scene, parked, (0, 0), {ep.POT_1: BOTH}))  # held
     swapped = {ep.POT_1: _at(spots[ep.POT_2]), ep.POT_2: _at(spots[ep.POT_1])}
-    assert stages[3].predicate(_state(scene, swapped))
-    assert _after(stages[5].predicate, _state(scene, swapped))
+    assert stages[3].predicate(state_with(scene, swapped))
+    assert after(stages[5].predicate, state_with(scene, swapped))
     # beside the spot (6 cm off), toppled, hovering, still held
     off = {**swapped, ep.POT_2: _at((spots[ep.POT_1][0] + 0.06, spots[ep.POT_1][1]))}
-    assert not stages[3].predicate(_state(scene, off))
+    assert not stages[3].predicate(state_with(scene, off))
     tipped = {**swapped, ep.POT_2: _at(spots[ep.POT_1], 0.03, quat_about("y", math.radians(40)))}
-    assert not stages[3].predicate(_state(scene, tipped))
+    assert not stages[3].predicate(state_with(scene, tipped))
     hover = {**swapped, ep.POT_1: _at(spots[ep.POT_2], 0.03)}
-    assert not _after(stages[5].predicate, _state(scene, hover))
-    held = _state(scene, swapped, (0, 0), {ep.POT_1: BOTH})
-    assert not _after(stages[5].predicate, held)
+    assert not after(stages[5].predicate, state_with(scene, hover))
+    held = state_with(scene, swapped, (0, 0), {ep.POT_1: BOTH})
+    assert not after(stages[5].predicate, held)
 
 
 def test_the_swap_without_the_moves_scores_nothing(task, scene):
     spots = task.spots(scene)
     monitor = StageMonitor(task.stages(scene))
-    done = _state(scene, {ep.POT_1: _at(spots[ep.POT_2]), ep.POT_2: _at(spots[ep.POT_1])})
+    done = state_with(scene, {ep.POT_1: _at(spots[ep.POT_2]), ep.POT_2: _at(spots[ep.POT_1])})
     for k in range(12):
         monitor.update(replace(done, step=k, time=k / 15))
     monitor.finish(replace(done, step=12, time=12 / 15))

@@ -9,8 +9,8 @@ import bicoord_drake.tasks.extract_bottom_block_to_top as ebt
 from bicoord_drake.config import StationConfig
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
-from bicoord_drake.stages.predicates import reset_predicate, stacked
-from bicoord_drake.tasks.base import check_task_class
+from bicoord_drake.stages.predicates import stacked
+from tests.tasks.helpers import after, state_with
 
 BOTTOM, MIDDLE, TOP = ebt.BLOCKS
 SEED = 3
@@ -26,17 +26,11 @@ def scene(task):
     return task.sample_scene(SEED)
 
 
-def test_task_class_is_well_formed(task):
-    check_task_class(type(task))
-    assert task.step_limit == 400
-
-
-def test_scene_is_a_function_of_the_seed(task):
-    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
-    assert a == b and a != c
-    assert {o.name for o in a.free_objects} == set(ebt.BLOCKS)
-    assert a.object(ebt.PLATFORM).fixed and a.object(ebt.PLATFORM).collide
-    assert len({a.object(n).color for n in ebt.BLOCKS}) == 3
+def test_scene_holds_the_task_objects(task):
+    scene = task.sample_scene(7)
+    assert {o.name for o in scene.free_objects} == set(ebt.BLOCKS)
+    assert scene.object(ebt.PLATFORM).fixed and scene.object(ebt.PLATFORM).collide
+    assert len({scene.object(n).color for n in ebt.BLOCKS}) == 3
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -81,20 +75,6 @@ def _at(scene, x=0.0, y=0.0, z=0.0):
     return np.array([px + x, py + y, ebt.PLATFORM_TOP + z + e / 2, 1.0, 0.0, 0.0, 0.0])
 
 
-def _state(scene, poses, openings=(1.0, 1.0), contacts=None, step=0):
-    s = WorldState.initial(scene)
-    action = np.array(s.action)
-    action[6], action[13] = openings
-    return replace(
-        s,
-        object_poses={**s.object_poses, **poses},
-        action=action,
-        contacts=contacts or {},
-        step=step,
-        time=step / 15,
-    )
-
-
 def _closed(*sides):
     return tuple(0.0 if side in sides else 1.0 for side in ("left", "right"))
 
@@ -112,32 +92,26 @@ def _extracted(scene, pulled=0.10, lift=0.02):
     }
 
 
-def _after(pred, state, frames=8):
-    """`pred` after `frames` identical updates (stateful predicates see time pass)."""
-    reset_predicate(pred)
-    return [pred(replace(state, step=k, time=k / 15)) for k in range(frames)][-1]
-
-
 def test_extraction_counts_only_clear_of_the_platform_with_the_rest_held_up(task, scene):
     pulled = task.stages(scene)[0].predicate
     ext, lifter = _roles(scene)
     holding = {BOTTOM: {ext}, MIDDLE: {lifter}}
     both = _closed(ext, lifter)
-    assert pulled(_state(scene, _extracted(scene), both, holding))
+    assert pulled(state_with(scene, _extracted(scene), both, holding))
     # only half out: still partly over the platform
-    assert not pulled(_state(scene, _extracted(scene, pulled=0.04), both, holding))
+    assert not pulled(state_with(scene, _extracted(scene, pulled=0.04), both, holding))
     # the rest not held up: the middle cube let go (resting 2 cm up is impossible, but the
     # lifter's fingers are off it)
-    assert not pulled(_state(scene, _extracted(scene), _closed(ext), {BOTTOM: {ext}}))
+    assert not pulled(state_with(scene, _extracted(scene), _closed(ext), {BOTTOM: {ext}}))
     # the middle cube held but not raised (the stack only tipped): not held up
     low = {**_extracted(scene), MIDDLE: _at(scene, z=scene.draws["edge"] + 0.003)}
-    assert not pulled(_state(scene, low, both, holding))
+    assert not pulled(state_with(scene, low, both, holding))
     # the top cube fell off the middle one onto the table
     fallen = {**_extracted(scene), TOP: np.r_[_at(scene, y=-0.12)[:2], 0.77, 1, 0, 0, 0]}
-    assert not pulled(_state(scene, fallen, both, holding))
+    assert not pulled(state_with(scene, fallen, both, holding))
     # the bottom cube knocked out (not held by the extractor), lying on the table
     knocked = {**_extracted(scene), BOTTOM: np.r_[_at(scene, x=0.12)[:2], 0.78, 1, 0, 0, 0]}
-    assert not pulled(_state(scene, knocked, _closed(lifter), {MIDDLE: {lifter}}))
+    assert not pulled(state_with(scene, knocked, _closed(lifter), {MIDDLE: {lifter}}))
 
 
 def test_two_cube_stack_counts_on_the_platform_let_go(task, scene):
@@ -146,19 +120,19 @@ def test_two_cube_stack_counts_on_the_platform_let_go(task, scene):
     ext, lifter = _roles(scene)
     two = {MIDDLE: _at(scene), TOP: _at(scene, z=e)}
     raised = {BOTTOM: _at(scene, x=0.1, z=0.15)}
-    assert lowered(_state(scene, {**two, **raised}, _closed(ext), {BOTTOM: {ext}}))
+    assert lowered(state_with(scene, {**two, **raised}, _closed(ext), {BOTTOM: {ext}}))
     # still held by the lifter
     held = {BOTTOM: {ext}, MIDDLE: {lifter}}
-    assert not lowered(_state(scene, {**two, **raised}, _closed(ext, lifter), held))
+    assert not lowered(state_with(scene, {**two, **raised}, _closed(ext, lifter), held))
     # still hovering 2 cm above the platform
     up = {MIDDLE: _at(scene, z=0.02), TOP: _at(scene, z=e + 0.02)}
-    assert not lowered(_state(scene, {**up, **raised}, _closed(ext), {BOTTOM: {ext}}))
+    assert not lowered(state_with(scene, {**up, **raised}, _closed(ext), {BOTTOM: {ext}}))
     # set down beside the platform's centre (hanging over its edge)
     beside = {MIDDLE: _at(scene, x=0.03), TOP: _at(scene, x=0.03, z=e)}
-    assert not lowered(_state(scene, {**beside, **raised}))
+    assert not lowered(state_with(scene, {**beside, **raised}))
     # the top cube toppled off onto the table
     fallen = {**two, TOP: np.r_[_at(scene, y=-0.1)[:2], 0.775, 1, 0, 0, 0]}
-    assert not lowered(_state(scene, {**fallen, **raised}))
+    assert not lowered(state_with(scene, {**fallen, **raised}))
 
 
 def test_the_tower_counts_with_the_old_bottom_cube_on_top_released_and_settled(task, scene):
@@ -166,19 +140,19 @@ def test_the_tower_counts_with_the_old_bottom_cube_on_top_released_and_settled(t
     e = scene.draws["edge"]
     ext, _ = _roles(scene)
     tower = {MIDDLE: _at(scene), TOP: _at(scene, z=e), BOTTOM: _at(scene, z=2 * e)}
-    assert _after(last, _state(scene, tower))
-    assert not _after(last, _state(scene, tower), frames=4)  # not yet at rest for 0.3 s
+    assert after(last, state_with(scene, tower))
+    assert not after(last, state_with(scene, tower), frames=4)  # not yet at rest for 0.3 s
     # still held on top
-    assert not _after(last, _state(scene, tower, _closed(ext), {BOTTOM: {ext}}))
+    assert not after(last, state_with(scene, tower, _closed(ext), {BOTTOM: {ext}}))
     # the original order (nothing moved): the bottom cube still at the bottom
-    assert not _after(last, _state(scene, {}))
+    assert not after(last, state_with(scene, {}))
     # dropped beside the stack
     dropped = {**tower, BOTTOM: np.r_[_at(scene, x=0.1)[:2], 0.75 + e / 2, 1, 0, 0, 0]}
-    assert not _after(last, _state(scene, dropped))
+    assert not after(last, state_with(scene, dropped))
     # tipped on the top: leaning 30 degrees on an edge
     q = (np.cos(np.pi / 12), 0.0, np.sin(np.pi / 12), 0.0)
     leaning = {**tower, BOTTOM: np.r_[tower[BOTTOM][:3] + [0.0, 0.0, 0.008], q]}
-    assert not _after(last, _state(scene, leaning))
+    assert not after(last, state_with(scene, leaning))
 
 
 def test_stages_count_only_in_order(task, scene):
@@ -186,7 +160,7 @@ def test_stages_count_only_in_order(task, scene):
     e = scene.draws["edge"]
     monitor = StageMonitor(task.stages(scene))
     tower = {MIDDLE: _at(scene), TOP: _at(scene, z=e), BOTTOM: _at(scene, z=2 * e)}
-    state = _state(scene, tower)
+    state = state_with(scene, tower)
     for k in range(10):
         monitor.update(replace(state, step=k, time=k / 15))
     monitor.finish(replace(state, step=10, time=10 / 15))

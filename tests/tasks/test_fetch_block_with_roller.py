@@ -13,9 +13,8 @@ from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.planning.grasps import GraspParams, grasp_candidates
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
-from bicoord_drake.stages.predicates import reset_predicate
-from bicoord_drake.tasks.base import check_task_class
 from tests.stages.helpers import quat_about
+from tests.tasks.helpers import after, state_with
 
 SEED = 4
 UP = (1.0, 0.0, 0.0, 0.0)
@@ -32,16 +31,10 @@ def scene(task):
     return task.sample_scene(SEED)
 
 
-def test_task_class_is_well_formed(task):
-    check_task_class(type(task))
-    assert task.step_limit == 450
-
-
-def test_scene_is_a_function_of_the_seed(task):
-    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
-    assert a == b and a != c
-    assert {o.name for o in a.free_objects} == {fb.CUBE, fb.ROLLER}
-    assert a.object(fb.SHELF).fixed
+def test_scene_holds_the_task_objects(task):
+    scene = task.sample_scene(7)
+    assert {o.name for o in scene.free_objects} == {fb.CUBE, fb.ROLLER}
+    assert scene.object(fb.SHELF).fixed
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -82,25 +75,6 @@ def test_initial_state_scores_nothing(task, scene):
 
 
 # ------------------------------------------------------------------ synthetic states
-def _state(scene, poses, openings=(1.0, 1.0), contacts=None, velocities=None, step=0):
-    s = WorldState.initial(scene)
-    action = np.array(s.action)
-    action[6], action[13] = openings
-    return replace(
-        s,
-        object_poses={**s.object_poses, **poses},
-        action=action,
-        contacts=contacts or {},
-        object_velocities={**s.object_velocities, **(velocities or {})},
-        step=step,
-        time=step / 15,
-    )
-
-
-def _after(pred, state, frames=8):
-    """`pred` after `frames` identical updates at 15 Hz (stateful predicates see time pass)."""
-    reset_predicate(pred)
-    return [pred(replace(state, step=k, time=k / 15)) for k in range(frames)][-1]
 
 
 def _cube(x, y=0.0, z=TABLE_TOP + fb.CUBE_EDGE / 2, quat=UP):
@@ -114,51 +88,51 @@ def _on_plate(dx=0.0, dy=0.0, dz=0.0, quat=UP):
 
 def test_push_counts_the_cube_out_past_the_line_on_the_table(task, scene):
     out = task.stages(scene)[0].predicate
-    assert out(_state(scene, _cube(-0.17)))
-    assert out(_state(scene, _cube(-0.16, 0.03, quat=quat_about("z", 0.5))))  # turned, aside
-    assert out(_state(scene, _cube(-0.17, quat=quat_about("x", math.pi / 2))))  # rolled over
+    assert out(state_with(scene, _cube(-0.17)))
+    assert out(state_with(scene, _cube(-0.16, 0.03, quat=quat_about("z", 0.5))))  # turned, aside
+    assert out(state_with(scene, _cube(-0.17, quat=quat_about("x", math.pi / 2))))  # rolled over
     # still in the tunnel, or half out (its centre not past the line)
-    assert not out(_state(scene, _cube(-0.13)))
-    assert not out(_state(scene, _cube(-0.148)))
+    assert not out(state_with(scene, _cube(-0.13)))
+    assert not out(state_with(scene, _cube(-0.148)))
     # knocked onto an edge, or lifted up (not on the table)
     edge = _cube(-0.17, z=TABLE_TOP + 0.035, quat=quat_about("y", math.pi / 4))
-    assert not out(_state(scene, edge))
-    assert not out(_state(scene, _cube(-0.17, z=TABLE_TOP + 0.06)))
+    assert not out(state_with(scene, edge))
+    assert not out(state_with(scene, _cube(-0.17, z=TABLE_TOP + 0.06)))
 
 
 def test_placement_counts_released_on_the_plate_centre_at_rest(task, scene):
     placed = task.stages(scene)[1].predicate
-    assert _after(placed, _state(scene, _on_plate()))
-    assert _after(placed, _state(scene, _on_plate(dx=0.012, dy=-0.012, quat=quat_about("z", 1))))
-    assert not _after(placed, _state(scene, _on_plate()), frames=3)  # not 0.3 s at rest yet
+    assert after(placed, state_with(scene, _on_plate()))
+    assert after(placed, state_with(scene, _on_plate(dx=0.012, dy=-0.012, quat=quat_about("z", 1))))
+    assert not after(placed, state_with(scene, _on_plate()), frames=3)  # not 0.3 s at rest yet
 
 
 def test_placement_is_not_fooled(task, scene):
     placed = task.stages(scene)[1].predicate
     on = _on_plate()
     # beside the target: 3 cm off centre, on the plate's edge
-    assert not _after(placed, _state(scene, _on_plate(dx=0.03)))
-    assert not _after(placed, _state(scene, _on_plate(dy=0.06)))
+    assert not after(placed, state_with(scene, _on_plate(dx=0.03)))
+    assert not after(placed, state_with(scene, _on_plate(dy=0.06)))
     # still held by the left hand; the right hand still gripping the roller (not both open)
     held = {fb.CUBE: {"left"}}
-    assert not _after(placed, _state(scene, on, (0.0, 1.0), held))
-    assert not _after(placed, _state(scene, on, (1.0, 0.0), {fb.ROLLER: {"right"}}))
+    assert not after(placed, state_with(scene, on, (0.0, 1.0), held))
+    assert not after(placed, state_with(scene, on, (1.0, 0.0), {fb.ROLLER: {"right"}}))
     # hovering above the plate, dropped on the table by the shelf, back in the tunnel
-    assert not _after(placed, _state(scene, _on_plate(dz=0.02)))
-    assert not _after(placed, _state(scene, _cube(-0.2)))
-    assert not _after(placed, _state(scene, _cube(fb.SHELF_XY[0])))
+    assert not after(placed, state_with(scene, _on_plate(dz=0.02)))
+    assert not after(placed, state_with(scene, _cube(-0.2)))
+    assert not after(placed, state_with(scene, _cube(fb.SHELF_XY[0])))
     # toppled onto an edge on the plate
     edge = _on_plate(dz=0.01, quat=quat_about("y", math.pi / 4))
-    assert not _after(placed, _state(scene, edge))
+    assert not after(placed, state_with(scene, edge))
     # still sliding
     moving = {fb.CUBE: np.array([0.05, 0.0, 0.0, 0.0, 0.0, 0.0])}
-    assert not _after(placed, _state(scene, on, velocities=moving))
+    assert not after(placed, state_with(scene, on, velocities=moving))
 
 
 def test_stages_count_only_in_order(task, scene):
     """The cube on the shelf without having been pushed out past the line scores nothing."""
     monitor = StageMonitor(task.stages(scene))
-    on = _state(scene, _on_plate())
+    on = state_with(scene, _on_plate())
     for k in range(20):
         monitor.update(replace(on, step=k, time=k / 15))
     monitor.finish(replace(on, step=20, time=20 / 15))
@@ -167,7 +141,7 @@ def test_stages_count_only_in_order(task, scene):
 
 def test_pushed_out_then_placed_scores_both(task, scene):
     monitor = StageMonitor(task.stages(scene))
-    out, on = _state(scene, _cube(-0.19)), _state(scene, _on_plate())
+    out, on = state_with(scene, _cube(-0.19)), state_with(scene, _on_plate())
     states = [replace(out, step=k, time=k / 15) for k in range(3)]
     states += [replace(on, step=k, time=k / 15) for k in range(3, 15)]
     for s in states:

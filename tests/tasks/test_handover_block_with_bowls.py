@@ -11,7 +11,6 @@ from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.stages.predicates import inside, lifted, released, reset_predicate
-from bicoord_drake.tasks.base import check_task_class
 from bicoord_drake.tasks.registry import get_task
 
 
@@ -20,17 +19,10 @@ def task():
     return get_task("handover_block_with_bowls")
 
 
-def test_task_class_is_well_formed(task):
-    check_task_class(type(task))
-    assert task.step_limit == 350
-    assert len(task.instructions("seen")) + len(task.instructions("unseen")) >= 10
-
-
-def test_scene_is_a_function_of_the_seed(task):
-    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
-    assert a == b and a != c
-    assert {o.name for o in a.objects} == {"pour_bowl", "catch_bowl", "cube", "target"}
-    assert a.object("target").fixed and not a.object("target").collide
+def test_scene_holds_the_task_objects(task):
+    scene = task.sample_scene(7)
+    assert {o.name for o in scene.objects} == {"pour_bowl", "catch_bowl", "cube", "target"}
+    assert scene.object("target").fixed and not scene.object("target").collide
 
 
 @pytest.mark.parametrize("seed", range(20))

@@ -10,8 +10,7 @@ from bicoord_drake.config import StationConfig
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
-from bicoord_drake.stages.predicates import reset_predicate
-from bicoord_drake.tasks.base import check_task_class
+from tests.tasks.helpers import after, state_with
 
 SEED = 3
 UP = (1.0, 0.0, 0.0, 0.0)
@@ -28,16 +27,10 @@ def scene(task):
     return task.sample_scene(SEED)
 
 
-def test_task_class_is_well_formed(task):
-    check_task_class(type(task))
-    assert task.step_limit == 1000
-
-
-def test_scene_is_a_function_of_the_seed(task):
-    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
-    assert a == b and a != c
-    assert {o.name for o in a.free_objects} == {pc.DRAWER, *pc.BOXES}
-    assert a.object(pc.CABINET).fixed and a.object(pc.DRAWER).slide.parent == pc.CABINET
+def test_scene_holds_the_task_objects(task):
+    scene = task.sample_scene(7)
+    assert {o.name for o in scene.free_objects} == {pc.DRAWER, *pc.BOXES}
+    assert scene.object(pc.CABINET).fixed and scene.object(pc.DRAWER).slide.parent == pc.CABINET
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -87,24 +80,10 @@ def _in_drawer(scene, d: float, slot: int, dx=0.0, dy=0.0, dz=0.0) -> np.ndarray
 
 
 def _state(scene, d=0.0, boxes=None, openings=(1.0, 1.0), contacts=None, step=0):
-    s = WorldState.initial(scene)
-    action = np.array(s.action)
-    action[6], action[13] = openings
-    return replace(
-        s,
-        object_poses={**s.object_poses, pc.DRAWER: _drawer_pose(scene, d), **(boxes or {})},
-        joint_positions={pc.DRAWER: d},
-        action=action,
-        contacts=contacts or {},
-        step=step,
-        time=step / 15,
-    )
-
-
-def _after(pred, state, frames=8):
-    """`pred` after `frames` identical updates at 15 Hz (stateful predicates see time pass)."""
-    reset_predicate(pred)
-    return [pred(replace(state, step=k, time=k / 15)) for k in range(frames)][-1]
+    """The drawer pulled out `d` (m), the `boxes` at their poses."""
+    poses = {pc.DRAWER: _drawer_pose(scene, d), **(boxes or {})}
+    s = state_with(scene, poses, openings, contacts, step=step)
+    return replace(s, joint_positions={pc.DRAWER: d})
 
 
 def test_stage_1_needs_the_box_in_the_left_hand_and_the_handle_in_the_right(task, scene):
@@ -130,35 +109,35 @@ def test_stage_3_gives_a_quarter_per_box_inside_released_at_rest(task, scene):
     one = {B1: _in_drawer(scene, 0.16, 0)}
     both = {**one, B2: _in_drawer(scene, 0.16, 1)}
     hold = {pc.DRAWER: {"right"}}
-    assert _after(put, _state(scene, 0.16, both, (1.0, 0.0), hold)) == 1.0
-    assert _after(put, _state(scene, 0.16, one, (1.0, 0.0), hold)) == 0.5
+    assert after(put, _state(scene, 0.16, both, (1.0, 0.0), hold)) == 1.0
+    assert after(put, _state(scene, 0.16, one, (1.0, 0.0), hold)) == 0.5
     # anywhere within the walls counts, and once closed too
     shifted = {**one, B2: _in_drawer(scene, 0.16, 1, dx=-0.03, dy=-0.05)}
-    assert _after(put, _state(scene, 0.16, shifted)) == 1.0
+    assert after(put, _state(scene, 0.16, shifted)) == 1.0
     closed = {B1: _in_drawer(scene, 0.0, 0), B2: _in_drawer(scene, 0.0, 1)}
-    assert _after(put, _state(scene, 0.0, closed)) == 1.0
-    assert _after(put, _state(scene, 0.16, both), frames=3) == 0.0  # not 0.3 s at rest yet
+    assert after(put, _state(scene, 0.0, closed)) == 1.0
+    assert after(put, _state(scene, 0.16, both), frames=3) == 0.0  # not 0.3 s at rest yet
 
 
 def test_stage_3_is_not_fooled(task, scene):
     put = task.stages(scene)[2].predicate
     in_1 = {B1: _in_drawer(scene, 0.16, 0)}
     # still held by the left hand
-    assert _after(put, _state(scene, 0.16, in_1, (0.0, 0.0), {B1: {"left"}})) == 0.0
+    assert after(put, _state(scene, 0.16, in_1, (0.0, 0.0), {B1: {"left"}})) == 0.0
     # beside the drawer on the table; in front of it on the table
     x, y, _ = _drawer_pose(scene, 0.16)[:3]
     table_z = TABLE_TOP + pc.BOX_SIZE[2] / 2
     beside = {B1: np.array([x - pc.DIMS.width / 2 - 0.05, y, table_z, *UP])}
     front = {B1: np.array([x, y - pc.DIMS.depth / 2 - 0.06, table_z, *UP])}
-    assert _after(put, _state(scene, 0.16, beside)) == 0.0
-    assert _after(put, _state(scene, 0.16, front)) == 0.0
+    assert after(put, _state(scene, 0.16, beside)) == 0.0
+    assert after(put, _state(scene, 0.16, front)) == 0.0
     # hovering above the drawer, or lying on its rim / the cabinet's top
-    assert _after(put, _state(scene, 0.16, {B1: _in_drawer(scene, 0.16, 0, dz=0.08)})) == 0.0
+    assert after(put, _state(scene, 0.16, {B1: _in_drawer(scene, 0.16, 0, dz=0.08)})) == 0.0
     on_top = {B1: _in_drawer(scene, 0.16, 0, dy=0.1, dz=pc.DIMS.outer[2] - pc.DIMS.wall)}
-    assert _after(put, _state(scene, 0.16, on_top)) == 0.0
+    assert after(put, _state(scene, 0.16, on_top)) == 0.0
     # under the drawer is impossible, but a box left where the drawer was (it slid out over
     # it) is not inside it
-    assert _after(put, _state(scene, 0.16, {B1: _in_drawer(scene, 0.0, 0)})) == 0.0
+    assert after(put, _state(scene, 0.16, {B1: _in_drawer(scene, 0.0, 0)})) == 0.0
 
 
 def test_stage_4_needs_the_drawer_shut_let_go_with_both_boxes_in(task, scene):
@@ -167,7 +146,7 @@ def test_stage_4_needs_the_drawer_shut_let_go_with_both_boxes_in(task, scene):
 
     def at(d, boxes=None, **kw):
         moved = {b: p - [0.0, d, 0, 0, 0, 0, 0] for b, p in (boxes or closed).items()}
-        return _after(close, _state(scene, d, moved, **kw))
+        return after(close, _state(scene, d, moved, **kw))
 
     assert at(0.0) and at(0.015)
     assert not at(0.03)  # 3 cm out

@@ -12,9 +12,7 @@ from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import SkillContext, move_tcp, retreat
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
-from bicoord_drake.stages.predicates import reset_predicate
-from bicoord_drake.tasks import TASK_MODULES, get_task
-from bicoord_drake.tasks.base import check_task_class
+from tests.tasks.helpers import after, state_with
 
 B1, B2, B3, B4 = sb.BOWLS
 SEED = 1
@@ -30,23 +28,11 @@ def scene(task):
     return task.sample_scene(SEED)
 
 
-def test_task_is_registered():
-    assert "stack_bowls" in TASK_MODULES
-    assert isinstance(get_task("stack_bowls"), sb.StackBowls)
-
-
-def test_task_class_is_well_formed(task):
-    check_task_class(type(task))
-    assert task.step_limit == 900
-    assert len(task.instructions("seen")) + len(task.instructions("unseen")) >= 10
-
-
-def test_scene_is_a_function_of_the_seed(task):
-    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
-    assert a == b and a != c
-    assert {o.name for o in a.free_objects} == set(sb.BOWLS)
-    assert a.object("stack_spot").fixed and not a.object("stack_spot").collide
-    assert len({a.object(n).color for n in sb.BOWLS}) == 4
+def test_scene_holds_the_task_objects(task):
+    scene = task.sample_scene(7)
+    assert {o.name for o in scene.free_objects} == set(sb.BOWLS)
+    assert scene.object("stack_spot").fixed and not scene.object("stack_spot").collide
+    assert len({scene.object(n).color for n in sb.BOWLS}) == 4
 
 
 @pytest.mark.parametrize("seed", range(25))
@@ -86,26 +72,6 @@ def _stack(names, offset=(0.0, 0.0), rise=sb.NEST_RISE):
     return {n: np.array([x, y, TABLE_TOP + k * rise, 1.0, 0, 0, 0]) for k, n in enumerate(names)}
 
 
-def _state(scene, poses, openings=(1.0, 1.0), contacts=None, step=0):
-    s = WorldState.initial(scene)
-    action = np.array(s.action)
-    action[6], action[13] = openings
-    return replace(
-        s,
-        object_poses={**s.object_poses, **poses},
-        action=action,
-        contacts=contacts or {},
-        step=step,
-        time=step / 15,
-    )
-
-
-def _after(pred, state, frames=8):
-    """`pred` after `frames` identical updates (stateful predicates see time pass)."""
-    reset_predicate(pred)
-    return [pred(replace(state, step=k, time=k / 15)) for k in range(frames)][-1]
-
-
 def _tilted(pose, angle):
     half = angle / 2
     return np.r_[pose[:3], np.cos(half), np.sin(half), 0.0, 0.0]
@@ -113,59 +79,59 @@ def _tilted(pose, angle):
 
 def test_first_bowl_counts_on_the_spot_only_let_go(task, scene):
     first = task.stages(scene)[1].predicate
-    assert first(_state(scene, _stack([B1])))
-    assert first(_state(scene, _stack([B1], offset=(0.03, 0.0))))
-    assert not first(_state(scene, _stack([B1], offset=(0.06, 0.0))))  # beside the spot
-    assert not first(_state(scene, _stack([B1]), (0.0, 1.0), {B1: {"left"}}))  # still held
+    assert first(state_with(scene, _stack([B1])))
+    assert first(state_with(scene, _stack([B1], offset=(0.03, 0.0))))
+    assert not first(state_with(scene, _stack([B1], offset=(0.06, 0.0))))  # beside the spot
+    assert not first(state_with(scene, _stack([B1]), (0.0, 1.0), {B1: {"left"}}))  # still held
     held_above = {B1: _stack([B1])[B1] + [0, 0, 0.03, 0, 0, 0, 0]}
-    assert not first(_state(scene, held_above, (0.0, 1.0), {B1: {"left"}}))
-    assert not first(_state(scene, {B1: _tilted(_stack([B1])[B1], 0.6)}))  # toppled
+    assert not first(state_with(scene, held_above, (0.0, 1.0), {B1: {"left"}}))
+    assert not first(state_with(scene, {B1: _tilted(_stack([B1])[B1], 0.6)}))  # toppled
 
 
 def test_nested_pair_counts_only_nested_and_let_go(task, scene):
     pair = task.stages(scene)[2].predicate
     two = _stack([B1, B2])
-    assert pair(_state(scene, two))
+    assert pair(state_with(scene, two))
     # any two bowls count, whichever arm brought them
-    assert pair(_state(scene, _stack([B3, B4])))
-    assert not pair(_state(scene, two, (1.0, 0.0), {B2: {"right"}}))  # still held
+    assert pair(state_with(scene, _stack([B3, B4])))
+    assert not pair(state_with(scene, two, (1.0, 0.0), {B2: {"right"}}))  # still held
     beside = {**two, B2: np.r_[sb.SPOT_XY[0] + 0.12, sb.SPOT_XY[1], TABLE_TOP, 1, 0, 0, 0]}
-    assert not pair(_state(scene, beside))
+    assert not pair(state_with(scene, beside))
     # perched on the rim, tilted
     perched = {**two, B2: _tilted(two[B1] + [0.03, 0, 0.045, 0, 0, 0, 0], 0.5)}
-    assert not pair(_state(scene, perched))
+    assert not pair(state_with(scene, perched))
     # upright but lying on the rim, far too high to be nested
-    assert not pair(_state(scene, _stack([B1, B2], rise=0.06)))
+    assert not pair(state_with(scene, _stack([B1, B2], rise=0.06)))
     # nested pair off the spot
-    assert not pair(_state(scene, _stack([B1, B2], offset=(0.07, 0.0))))
+    assert not pair(state_with(scene, _stack([B1, B2], offset=(0.07, 0.0))))
 
 
 def test_full_stack_counts_only_complete_released_and_settled(task, scene):
     last = task.stages(scene)[4].predicate
     four = _stack(sb.BOWLS)
-    assert _after(last, _state(scene, four))
-    assert not _after(last, _state(scene, four), frames=4)  # not yet at rest for 0.3 s
-    assert not _after(last, _state(scene, four, (1.0, 0.0), {B4: {"right"}}))  # still held
+    assert after(last, state_with(scene, four))
+    assert not after(last, state_with(scene, four), frames=4)  # not yet at rest for 0.3 s
+    assert not after(last, state_with(scene, four, (1.0, 0.0), {B4: {"right"}}))  # still held
     # the last bowl dropped beside the stack
     dropped = {**four, B4: np.r_[sb.SPOT_XY[0], sb.SPOT_XY[1] + 0.13, TABLE_TOP, 1, 0, 0, 0]}
-    assert not _after(last, _state(scene, dropped))
+    assert not after(last, state_with(scene, dropped))
     # the top bowl toppled inside the stack
-    assert not _after(last, _state(scene, {**four, B4: _tilted(four[B4], 0.5)}))
+    assert not after(last, state_with(scene, {**four, B4: _tilted(four[B4], 0.5)}))
     # order does not matter: any four nested bowls are the tallest stack
-    assert _after(last, _state(scene, _stack([B2, B4, B1, B3])))
+    assert after(last, state_with(scene, _stack([B2, B4, B1, B3])))
 
 
 def test_tallest_stack_counts_the_longest_chain(scene):
     poses = {**_stack([B1, B2, B3]), B4: np.r_[0.2, 0.1, TABLE_TOP, 1, 0, 0, 0]}
-    assert sb.tallest_stack(_state(scene, poses)) == [B1, B2, B3]
+    assert sb.tallest_stack(state_with(scene, poses)) == [B1, B2, B3]
     gap = {**_stack([B1, B2]), B3: _stack([B1, B2, B3])[B3] + [0, 0, 0.04, 0, 0, 0, 0]}
-    assert sb.tallest_stack(_state(scene, gap)) == [B1, B2]
+    assert sb.tallest_stack(state_with(scene, gap)) == [B1, B2]
 
 
 def test_stages_count_only_in_order(task, scene):
     """A finished stack seen without the earlier stages scores nothing."""
     monitor = StageMonitor(task.stages(scene))
-    four = _state(scene, _stack(sb.BOWLS))
+    four = state_with(scene, _stack(sb.BOWLS))
     for k in range(10):
         monitor.update(replace(four, step=k, time=k / 15))
     monitor.finish(replace(four, step=10, time=10 / 15))

@@ -1,7 +1,6 @@
 """sweep_block: seeded scenes, stages on synthetic states, (slow) the expert."""
 
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,7 +12,7 @@ from bicoord_drake.models.embodiment import aloha_viperx
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
-from bicoord_drake.stages.predicates import reset_predicate
+from tests.tasks.helpers import after, state_with
 
 SEED = 3
 
@@ -28,18 +27,10 @@ def scene(task):
     return task.sample_scene(SEED)
 
 
-def test_task_class_is_well_formed(task):
-    from bicoord_drake.tasks.base import check_task_class
-
-    check_task_class(type(task))
-    assert task.step_limit == 500
-
-
-def test_scene_is_a_function_of_the_seed(task):
-    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
-    assert a == b and a != c
-    assert {o.name for o in a.free_objects} == {sb.CUBE, sb.PAN, sb.BRUSH}
-    assert a.object(sb.PEDESTAL).fixed and a.object(sb.BIN).fixed
+def test_scene_holds_the_task_objects(task):
+    scene = task.sample_scene(7)
+    assert {o.name for o in scene.free_objects} == {sb.CUBE, sb.PAN, sb.BRUSH}
+    assert scene.object(sb.PEDESTAL).fixed and scene.object(sb.BIN).fixed
 
 
 @pytest.mark.parametrize("seed", range(20))
@@ -92,24 +83,6 @@ def test_initial_state_scores_nothing(task, scene):
 
 
 # ------------------------------------------------------------------ synthetic states
-def _state(scene, poses=None, openings=(1.0, 1.0), contacts=None, velocities=None, step=0):
-    s = WorldState.initial(scene)
-    action = np.array(s.action)
-    action[6], action[13] = openings
-    return replace(
-        s,
-        object_poses={**s.object_poses, **(poses or {})},
-        action=action,
-        contacts=contacts or {},
-        object_velocities={**s.object_velocities, **(velocities or {})},
-        step=step,
-        time=step / 15,
-    )
-
-
-def _after(pred, state, frames=8):
-    reset_predicate(pred)
-    return [pred(replace(state, step=k, time=k / 15)) for k in range(frames)][-1]
 
 
 def _pose(X: RigidTransform) -> np.ndarray:
@@ -129,15 +102,15 @@ HELD = {sb.PAN: {"left"}, sb.BRUSH: {"right"}}
 def test_tools_held_counts_both_lifted_in_closed_hands(task, scene):
     held = task.stages(scene)[0].predicate
     up = {sb.PAN: _raised(scene, sb.PAN, 0.05), sb.BRUSH: _raised(scene, sb.BRUSH, 0.05)}
-    assert held(_state(scene, up, (0.0, 0.0), HELD))
+    assert held(state_with(scene, up, (0.0, 0.0), HELD))
     # one tool not held, or the left gripper open, or a tool still on the table
-    assert not held(_state(scene, up, (0.0, 0.0), {sb.PAN: {"left"}}))
-    assert not held(_state(scene, up, (1.0, 0.0), HELD))
+    assert not held(state_with(scene, up, (0.0, 0.0), {sb.PAN: {"left"}}))
+    assert not held(state_with(scene, up, (1.0, 0.0), HELD))
     low = {**up, sb.BRUSH: _raised(scene, sb.BRUSH, 0.0)}
-    assert not held(_state(scene, low, (0.0, 0.0), HELD))
+    assert not held(state_with(scene, low, (0.0, 0.0), HELD))
     # each tool in the wrong hand
     swapped = {sb.PAN: {"right"}, sb.BRUSH: {"left"}}
-    assert not held(_state(scene, up, (0.0, 0.0), swapped))
+    assert not held(state_with(scene, up, (0.0, 0.0), swapped))
 
 
 def _pan_at_edge(scene, rpy=(0.0, 0.0, 0.0)):
@@ -153,9 +126,9 @@ def _cube_in(X_WP, x=0.0, y=0.0, dz=0.0, yaw=0.0):
 def test_sweep_counts_the_cube_lying_in_the_held_pan(task, scene):
     swept = task.stages(scene)[1].predicate
     X = _pan_at_edge(scene)
-    assert swept(_state(scene, {sb.PAN: _pose(X), sb.CUBE: _cube_in(X)}, (0.0, 0.0), HELD))
+    assert swept(state_with(scene, {sb.PAN: _pose(X), sb.CUBE: _cube_in(X)}, (0.0, 0.0), HELD))
     turned = _cube_in(X, x=0.02, y=-0.03, yaw=0.7)
-    assert swept(_state(scene, {sb.PAN: _pose(X), sb.CUBE: turned}, (0.0, 0.0), HELD))
+    assert swept(state_with(scene, {sb.PAN: _pose(X), sb.CUBE: turned}, (0.0, 0.0), HELD))
 
 
 def test_sweep_is_not_fooled(task, scene):
@@ -163,19 +136,19 @@ def test_sweep_is_not_fooled(task, scene):
     X = _pan_at_edge(scene)
     pan = {sb.PAN: _pose(X)}
     # the cube still on the pedestal (in front of the pan's mouth)
-    assert not swept(_state(scene, pan, (0.0, 0.0), HELD))
+    assert not swept(state_with(scene, pan, (0.0, 0.0), HELD))
     # half over the pedestal's edge, hanging over the pan's front edge
     edge = _cube_in(X, x=sb.PAN_DIMS.length / 2, dz=sb.DROP)
-    assert not swept(_state(scene, {**pan, sb.CUBE: edge}, (0.0, 0.0), HELD))
+    assert not swept(state_with(scene, {**pan, sb.CUBE: edge}, (0.0, 0.0), HELD))
     # held up above the pan, or fallen on the table under it
-    assert not swept(_state(scene, {**pan, sb.CUBE: _cube_in(X, dz=0.03)}, (0.0, 0.0), HELD))
+    assert not swept(state_with(scene, {**pan, sb.CUBE: _cube_in(X, dz=0.03)}, (0.0, 0.0), HELD))
     fallen = _pose(RigidTransform(X.translation() * [1, 1, 0] + [0, 0, TABLE_TOP + 0.02]))
-    assert not swept(_state(scene, {**pan, sb.CUBE: fallen}, (0.0, 0.0), HELD))
+    assert not swept(state_with(scene, {**pan, sb.CUBE: fallen}, (0.0, 0.0), HELD))
     # the pan dropped (not held) or tipped 45 degrees
     lying = {sb.PAN: _pose(X), sb.CUBE: _cube_in(X)}
-    assert not swept(_state(scene, lying, (1.0, 0.0), {sb.BRUSH: {"right"}}))
+    assert not swept(state_with(scene, lying, (1.0, 0.0), {sb.BRUSH: {"right"}}))
     T = _pan_at_edge(scene, (0.0, math.radians(45), 0.0))
-    assert not swept(_state(scene, {sb.PAN: _pose(T), sb.CUBE: _cube_in(T)}, (0.0, 0.0), HELD))
+    assert not swept(state_with(scene, {sb.PAN: _pose(T), sb.CUBE: _cube_in(T)}, (0.0, 0.0), HELD))
 
 
 def _in_bin(dx=0.0, dy=0.0, dz=0.0, quat=(1.0, 0.0, 0.0, 0.0)):
@@ -186,9 +159,9 @@ def _in_bin(dx=0.0, dy=0.0, dz=0.0, quat=(1.0, 0.0, 0.0, 0.0)):
 
 def test_bin_counts_the_cube_at_rest_in_the_bin(task, scene):
     binned = task.stages(scene)[2].predicate
-    assert _after(binned, _state(scene, _in_bin()))
-    assert _after(binned, _state(scene, _in_bin(0.03, -0.02), (0.0, 1.0)))  # pan still held
-    assert not _after(binned, _state(scene, _in_bin()), frames=3)  # not 0.3 s at rest yet
+    assert after(binned, state_with(scene, _in_bin()))
+    assert after(binned, state_with(scene, _in_bin(0.03, -0.02), (0.0, 1.0)))  # pan still held
+    assert not after(binned, state_with(scene, _in_bin()), frames=3)  # not 0.3 s at rest yet
 
 
 def test_bin_is_not_fooled(task, scene):
@@ -196,15 +169,15 @@ def test_bin_is_not_fooled(task, scene):
     # on the table beside the bin, on its rim, above it (falling), still in the pan over it
     x, y = sb.BIN_XY
     beside = {sb.CUBE: np.array([x + 0.12, y, TABLE_TOP + 0.02, 1, 0, 0, 0])}
-    assert not _after(binned, _state(scene, beside))
-    assert not _after(binned, _state(scene, _in_bin(dz=sb.BIN_SHAPE.size[2])))
+    assert not after(binned, state_with(scene, beside))
+    assert not after(binned, state_with(scene, _in_bin(dz=sb.BIN_SHAPE.size[2])))
     X = sb.pan_over_bin()
     in_pan = {sb.PAN: _pose(X), sb.CUBE: _cube_in(X)}
-    assert not _after(binned, _state(scene, in_pan, (0.0, 0.0), HELD))
+    assert not after(binned, state_with(scene, in_pan, (0.0, 0.0), HELD))
     # touched by a finger, still moving
-    assert not _after(binned, _state(scene, _in_bin(), (0.0, 0.0), {sb.CUBE: {"left"}}))
+    assert not after(binned, state_with(scene, _in_bin(), (0.0, 0.0), {sb.CUBE: {"left"}}))
     moving = {sb.CUBE: np.array([0.1, 0, 0, 0, 0, 0])}
-    assert not _after(binned, _state(scene, _in_bin(), velocities=moving))
+    assert not after(binned, state_with(scene, _in_bin(), velocities=moving))
 
 
 def test_stages_count_only_in_order(task, scene):
@@ -212,7 +185,7 @@ def test_stages_count_only_in_order(task, scene):
     stages = task.stages(scene)
     monitor = StageMonitor(stages)
     for k in range(10):
-        monitor.update(_state(scene, _in_bin(), step=k))
+        monitor.update(state_with(scene, _in_bin(), step=k))
     assert not monitor.success
     assert monitor.completed() == [False, False, False]
 

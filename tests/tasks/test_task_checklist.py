@@ -1,16 +1,19 @@
-"""Every registered task has what docs/adding_a_task.md asks of a task: the docstring sections,
-instructions split seen/unseen, a benchmark file and a row in the README's task table."""
+"""Every registered task has what docs/adding_a_task.md asks of a task: registration under its
+module's name, a well-formed class with the step limit the README documents, a scene that is a
+function of the seed, the docstring sections, instructions split seen/unseen, a benchmark file
+and a row in the README's task table. What a task's scene holds: tests/tasks/test_<task>.py."""
 
 import re
 from pathlib import Path
 
 import pytest
 
-from bicoord_drake.tasks import get_task, list_tasks
-from bicoord_drake.tasks.base import MIN_INSTRUCTIONS
+from bicoord_drake.tasks import TASK_MODULES, get_task, list_tasks
+from bicoord_drake.tasks.base import MIN_INSTRUCTIONS, check_task_class
 
 ROOT = Path(__file__).resolve().parents[2]
 SECTIONS = ("Description", "Randomization", "Stages", "Success")
+STEP_LIMIT = 1  # the README task table's column "step limit"
 
 
 def readme_task_rows() -> dict[str, list[str]]:
@@ -28,6 +31,23 @@ def readme_task_rows() -> dict[str, list[str]]:
 def test_the_readme_table_is_found():
     rows = readme_task_rows()
     assert "jigsaw" in rows and len(rows["jigsaw"]) == 5
+
+
+def test_every_task_module_registers_its_task():
+    assert list_tasks() == sorted(TASK_MODULES)
+
+
+@pytest.mark.parametrize("name", list_tasks())
+def test_task_is_registered_well_formed_and_seeded(name):
+    task = get_task(name)
+    assert name in TASK_MODULES and type(task).__module__ == f"bicoord_drake.tasks.{name}"
+    check_task_class(type(task))
+    rows = readme_task_rows()
+    assert name in rows, f"{name}: no row in the README's task table"
+    assert task.step_limit == int(rows[name][STEP_LIMIT]), f"{name}: step limit is not the README's"
+    a, b, c = task.sample_scene(7), task.sample_scene(7), task.sample_scene(8)
+    assert a == b, f"{name}: seed 7 gave two different scenes"
+    assert a != c, f"{name}: seeds 7 and 8 gave the same scene"
 
 
 @pytest.mark.parametrize("name", list_tasks())
