@@ -71,6 +71,9 @@ class TaskResult:
     replay_failures: list[tuple[int, str]] = field(default_factory=list)
     #: the run continued episodes kept in an earlier run's data directory (--data)
     resumed: bool = False
+    #: the generation workers' seconds over every seed in the data directory (from its manifest)
+    worker_seconds: float | None = None
+    replay_seconds: float = 0.0
 
 
 def parse_seeds(text: str) -> range:
@@ -149,6 +152,16 @@ def seed_text(seeds: range) -> str:
     return f"{seeds.start}–{seeds.stop - 1}" if len(seeds) > 1 else str(seeds.start)
 
 
+def _resumed_note(r: TaskResult) -> str:
+    if not r.resumed:
+        return ""
+    spent = f"{r.worker_seconds / 60:.1f} min" if r.worker_seconds else "an unknown time"
+    return (
+        " (this run only: it resumed an earlier run's data, whose generation workers spent "
+        f"{spent} on all its seeds)"
+    )
+
+
 def format_section(r: TaskResult) -> str:
     """The markdown section of one task (starts with '## <task>')."""
     share = 100 * r.kept / r.tried if r.tried else 0.0
@@ -163,10 +176,9 @@ def format_section(r: TaskResult) -> str:
         "|---|---|",
         f"| commit | `{r.commit}`{' (dirty)' if r.dirty else ''} |",
         f"| mean length of kept episodes | {length} |",
-        f"| wall time | {r.wall_seconds / 60:.1f} min"
-        + (" (this run only: it resumed an earlier run's data)" if r.resumed else "")
-        + " |",
+        f"| wall time | {r.wall_seconds / 60:.1f} min{_resumed_note(r)} |",
         *([f"| replay check of the kept episodes | {replay} |"] if replay else []),
+        *([f"| replay check wall time | {r.replay_seconds / 60:.1f} min |"] if replay else []),
         f"| date (UTC) | {r.date} |",
         f"| machine | {r.machine} |",
         "",
@@ -269,7 +281,10 @@ def run_task(
     t0 = time.perf_counter()
     summary = generate(config)
     wall = time.perf_counter() - t0
+    t1 = time.perf_counter()
     replayed = replay_check(task, work_dir / task, workers) if replay and summary.kept else None
+    replay_seconds = time.perf_counter() - t1
+    per_episode = getattr(summary, "seconds_per_episode", None)
     end_commit, end_dirty = git_state()  # the tree may change while the seeds run
     dirty = dirty or end_dirty or code_changed(commit, end_commit)
     return TaskResult(
@@ -287,6 +302,8 @@ def run_task(
         replay=replayed[:2] if replayed else None,
         replay_failures=replayed[2] if replayed else [],
         resumed=resumed,
+        worker_seconds=per_episode * summary.kept if per_episode else None,
+        replay_seconds=replay_seconds,
     )
 
 

@@ -153,6 +153,7 @@ def test_section_reports_the_replay_check_and_what_did_not_reproduce(es):
     r.replay, r.replay_failures = (9, 10), [(7, "2, 3")]
     text = es.format_section(r)
     assert "| replay check of the kept episodes | **9/10** reproduce every stage |" in text
+    assert "| replay check wall time |" in text
     assert "| 7 | 2, 3 |" in text
 
 
@@ -194,7 +195,9 @@ def test_data_option_keeps_the_episodes_and_marks_a_resumed_run(es, tmp_path, mo
         manifest = Path(config.out) / config.task / "manifest.json"
         manifest.parent.mkdir(parents=True, exist_ok=True)
         manifest.write_text("{}")
-        return SimpleNamespace(kept=3, tried=3, failures=[], mean_length=9)
+        return SimpleNamespace(
+            kept=3, tried=3, failures=[], mean_length=9, seconds_per_episode=40.0
+        )
 
     monkeypatch.setattr(gen, "generate", fake_generate)
     monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
@@ -204,4 +207,6 @@ def test_data_option_keeps_the_episodes_and_marks_a_resumed_run(es, tmp_path, mo
     assert seen == [str(data)] and (data / "jigsaw" / "manifest.json").exists()
     assert "resumed" not in out.read_text()
     assert es.main(argv) == 0  # the second run continues the first one's directory
-    assert "(this run only: it resumed an earlier run's data)" in out.read_text()
+    text = out.read_text()
+    assert "(this run only: it resumed an earlier run's data, whose generation workers " in text
+    assert "spent 2.0 min on all its seeds)" in text
