@@ -102,15 +102,12 @@ def test_abstract_task_rejected(empty_registry):
 
 # ------------------------------------------------------------- every registered task
 @pytest.mark.parametrize("name", list_tasks())
-def test_registered_task_is_well_formed(name):
+def test_registered_task_scene_round_trips_and_its_stages_are_valid(name):
+    """(Registration, the class, seed determinism, docstring: test_task_checklist.py.)"""
     task = get_task(name)
     scene = task.sample_scene(7)
     assert scene.seed == 7
-    assert scene == task.sample_scene(7), "same seed must give the same scene"
     assert Scene.model_validate_json(scene.model_dump_json()) == scene
     StageMonitor(task.stages(scene))  # scores sum to 1, dependencies point backwards
     count = task.object_count(scene)
     assert isinstance(count, int) and count > 0
-    assert task.__doc__ and all(
-        section in task.__doc__ for section in ("Description", "Randomization", "Stages", "Success")
-    )
