@@ -277,7 +277,7 @@ def run_task(
         randomize=randomize,
     )
     commit, dirty = git_state()
-    resumed = (work_dir / task / "manifest.json").exists()
+    resumed = (work_dir / task / config.config_name / "manifest.json").exists()
     t0 = time.perf_counter()
     summary = generate(config)
     wall = time.perf_counter() - t0

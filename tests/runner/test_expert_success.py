@@ -192,7 +192,7 @@ def test_data_option_keeps_the_episodes_and_marks_a_resumed_run(es, tmp_path, mo
 
     def fake_generate(config):
         seen.append(config.out)
-        manifest = Path(config.out) / config.task / "manifest.json"
+        manifest = Path(config.out) / config.task / config.config_name / "manifest.json"
         manifest.parent.mkdir(parents=True, exist_ok=True)
         manifest.write_text("{}")
         return SimpleNamespace(
@@ -204,7 +204,7 @@ def test_data_option_keeps_the_episodes_and_marks_a_resumed_run(es, tmp_path, mo
     data, out = tmp_path / "data", tmp_path / "success.md"
     argv = ["--tasks", "jigsaw", "--seeds", "0-2", "--data", str(data), "--out", str(out)]
     assert es.main(argv) == 0
-    assert seen == [str(data)] and (data / "jigsaw" / "manifest.json").exists()
+    assert seen == [str(data)] and (data / "jigsaw" / "default" / "manifest.json").exists()
     assert "resumed" not in out.read_text()
     assert es.main(argv) == 0  # the second run continues the first one's directory
     text = out.read_text()
