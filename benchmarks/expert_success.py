@@ -263,6 +263,7 @@ def run_task(
     """Every seed of `seeds` through generate() (no rendering, no video) in `work_dir`; with
     `randomize`, on the randomized scenes (textures, table height, clutter); with `replay`,
     then the replay check of the kept episodes (:func:`replay_check`)."""
+    from bicoord_drake.data.episode import EpisodeLayout
     from bicoord_drake.runner.generate import GenerateConfig, generate
 
     config = GenerateConfig(
@@ -277,7 +278,7 @@ def run_task(
         randomize=randomize,
     )
     commit, dirty = git_state()
-    resumed = (work_dir / task / config.config_name / "manifest.json").exists()
+    resumed = EpisodeLayout(work_dir, task, config.config_name).manifest.exists()
     t0 = time.perf_counter()
     summary = generate(config)
     wall = time.perf_counter() - t0
