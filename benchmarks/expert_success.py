@@ -285,7 +285,7 @@ def run_task(
     t1 = time.perf_counter()
     replayed = replay_check(task, work_dir / task, workers) if replay and summary.kept else None
     replay_seconds = time.perf_counter() - t1
-    per_episode = getattr(summary, "seconds_per_episode", None)
+    per_episode = summary.seconds_per_episode
     end_commit, end_dirty = git_state()  # the tree may change while the seeds run
     dirty = dirty or end_dirty or code_changed(commit, end_commit)
     return TaskResult(

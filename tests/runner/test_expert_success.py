@@ -134,7 +134,9 @@ def test_randomize_measures_randomized_scenes_in_their_own_section(es, tmp_path,
 
     def fake_generate(config):
         seen["config"] = config
-        return SimpleNamespace(kept=3, tried=3, failures=[], mean_length=100.0)
+        return SimpleNamespace(
+            kept=3, tried=3, failures=[], mean_length=100.0, seconds_per_episode=None
+        )
 
     monkeypatch.setattr(gen, "generate", fake_generate)
     monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
@@ -163,7 +165,11 @@ def test_replay_option_replays_the_kept_episodes_of_the_run(es, tmp_path, monkey
     from bicoord_drake.runner import generate as gen
 
     monkeypatch.setattr(
-        gen, "generate", lambda config: SimpleNamespace(kept=2, tried=3, failures=[], mean_length=9)
+        gen,
+        "generate",
+        lambda config: SimpleNamespace(
+            kept=2, tried=3, failures=[], mean_length=9, seconds_per_episode=None
+        ),
     )
     monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
     replayed = {}
