@@ -19,6 +19,13 @@ def es():
     return module
 
 
+def summary(kept: int, tried: int, mean_length: float, seconds_per_episode: float | None = None):
+    """What a fake generate() returns: the real summary type, so the fakes keep its fields."""
+    from bicoord_drake.runner.generate import GenerateSummary
+
+    return GenerateSummary(Path("unused"), kept, tried, [], mean_length, seconds_per_episode, None)
+
+
 def test_seed_ranges(es):
     assert es.parse_seeds("0-29") == range(0, 30)
     assert es.parse_seeds("7") == range(7, 8)
@@ -126,17 +133,13 @@ def test_only_package_changes_make_a_measurement_dirty(es, tmp_path):
 
 
 def test_randomize_measures_randomized_scenes_in_their_own_section(es, tmp_path, monkeypatch):
-    from types import SimpleNamespace
-
     from bicoord_drake.runner import generate as gen
 
     seen = {}
 
     def fake_generate(config):
         seen["config"] = config
-        return SimpleNamespace(
-            kept=3, tried=3, failures=[], mean_length=100.0, seconds_per_episode=None
-        )
+        return summary(kept=3, tried=3, mean_length=100.0)
 
     monkeypatch.setattr(gen, "generate", fake_generate)
     monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
@@ -160,17 +163,9 @@ def test_section_reports_the_replay_check_and_what_did_not_reproduce(es):
 
 
 def test_replay_option_replays_the_kept_episodes_of_the_run(es, tmp_path, monkeypatch):
-    from types import SimpleNamespace
-
     from bicoord_drake.runner import generate as gen
 
-    monkeypatch.setattr(
-        gen,
-        "generate",
-        lambda config: SimpleNamespace(
-            kept=2, tried=3, failures=[], mean_length=9, seconds_per_episode=None
-        ),
-    )
+    monkeypatch.setattr(gen, "generate", lambda config: summary(kept=2, tried=3, mean_length=9))
     monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
     replayed = {}
 
@@ -190,20 +185,17 @@ def test_replay_option_replays_the_kept_episodes_of_the_run(es, tmp_path, monkey
 
 
 def test_data_option_keeps_the_episodes_and_marks_a_resumed_run(es, tmp_path, monkeypatch):
-    from types import SimpleNamespace
-
+    from bicoord_drake.data.episode import EpisodeLayout
     from bicoord_drake.runner import generate as gen
 
     seen = []
 
     def fake_generate(config):
         seen.append(config.out)
-        manifest = Path(config.out) / config.task / config.config_name / "manifest.json"
+        manifest = EpisodeLayout(Path(config.out), config.task, config.config_name).manifest
         manifest.parent.mkdir(parents=True, exist_ok=True)
         manifest.write_text("{}")
-        return SimpleNamespace(
-            kept=3, tried=3, failures=[], mean_length=9, seconds_per_episode=40.0
-        )
+        return summary(kept=3, tried=3, mean_length=9, seconds_per_episode=40.0)
 
     monkeypatch.setattr(gen, "generate", fake_generate)
     monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
