@@ -152,16 +152,32 @@ class Simulation:
     def finger_contacts(self) -> dict[str, set[str]]:
         """For each scene object, the sides ('left', 'right') whose fingers touch it now."""
         st = self.station
-        fingers = {}
-        for side, inst in st.arms.items():
-            for name in ("left_finger", "right_finger"):
-                fingers[int(st.plant.GetBodyByName(name, inst).index())] = side
-        by_body = {int(body.index()): name for name, body in st.object_bodies.items()}
-        touching: dict[str, set[str]] = {name: set() for name in st.object_bodies}
+        fingers = {
+            int(st.plant.GetBodyByName(name, inst).index()): side
+            for side, inst in st.arms.items()
+            for name in ("left_finger", "right_finger")
+        }
+        return self._sides_touching(fingers)
+
+    def robot_contacts(self) -> dict[str, set[str]]:
+        """For each scene object, the sides ('left', 'right') any of whose bodies (fingers, palm,
+        wrist, links, base) touch it now."""
+        st = self.station
+        bodies = {
+            int(index): side
+            for side, inst in st.arms.items()
+            for index in st.plant.GetBodyIndices(inst)
+        }
+        return self._sides_touching(bodies)
+
+    def _sides_touching(self, robot_bodies: dict[int, str]) -> dict[str, set[str]]:
+        """Object name -> sides of the `robot_bodies` (body index -> side) in contact with it."""
+        by_body = {int(body.index()): name for name, body in self.station.object_bodies.items()}
+        touching: dict[str, set[str]] = {name: set() for name in self.station.object_bodies}
         for a, b in self.contact_pairs():
-            for finger, other in ((a, b), (b, a)):
-                if finger in fingers and other in by_body:
-                    touching[by_body[other]].add(fingers[finger])
+            for robot, other in ((a, b), (b, a)):
+                if robot in robot_bodies and other in by_body:
+                    touching[by_body[other]].add(robot_bodies[robot])
         return touching
 
     def images(self, depth: bool = False) -> dict[str, np.ndarray]:

@@ -393,7 +393,8 @@ def stands_in(
 
 
 def released(obj: str, open_at: float = OPEN_AT) -> Predicate:
-    """Both grippers commanded open (opening >= `open_at`) and no finger touching `obj`."""
+    """Both grippers commanded open (opening >= `open_at`) and no robot body (finger, palm,
+    wrist, link) touching `obj`."""
 
     def check(s: WorldState) -> bool:
         opened = all(s.action[i] >= open_at for i in GRIPPER_INDEX.values())
@@ -403,14 +404,14 @@ def released(obj: str, open_at: float = OPEN_AT) -> Predicate:
 
 
 def held_by(obj: str, side: str = "any", closed_below: float = OPEN_AT) -> Predicate:
-    """`obj` touched by the fingers of a closed gripper: `side` is 'left', 'right', 'both' or
-    'any'."""
+    """`obj` touched by the fingers of a closed gripper (a palm or a wrist against it is not a
+    hold): `side` is 'left', 'right', 'both' or 'any'."""
     if side not in ("left", "right", "both", "any"):
         raise ValueError("side must be 'left', 'right', 'both' or 'any'")
     sides = {"left": ("left",), "right": ("right",), "both": ("left", "right")}
 
     def holds(s: WorldState, arm: str) -> bool:
-        return arm in s.touching(obj) and s.opening(arm) < closed_below
+        return arm in s.fingers_touching(obj) and s.opening(arm) < closed_below
 
     def check(s: WorldState) -> bool:
         if side == "any":
@@ -421,8 +422,9 @@ def held_by(obj: str, side: str = "any", closed_below: float = OPEN_AT) -> Predi
 
 
 def untouched(obj: str) -> Predicate:
-    """No finger of either gripper touches `obj` (whatever the grippers are commanded to do):
-    one arm has let go of a placement while the other still holds something."""
+    """No body of either arm (finger, palm, wrist, link) touches `obj`, whatever the grippers
+    are commanded to do: one arm has let go of a placement while the other still holds
+    something."""
     return Predicate(lambda s: not s.touching(obj), f"untouched({obj!r})")
 
 
@@ -455,13 +457,25 @@ def stacked(
 
 
 def upright(obj: str, max_tilt: float = math.radians(15), axis: str = "z") -> Predicate:
-    """The object's `axis` within `max_tilt` (rad) of vertical (either way up)."""
+    """The right way up: the object's `axis` within `max_tilt` (rad) of world +z. A pot, bowl,
+    cup or plate rim-down, or a microphone head-down, is not upright; for shapes that are the
+    same either way up (a cube, a pier) use :func:`vertical`."""
+
+    def check(s: WorldState) -> bool:
+        return tilt(s, obj, axis) <= max_tilt
+
+    return Predicate(check, f"upright({obj!r}, max_tilt={max_tilt:.3g}, axis={axis!r})")
+
+
+def vertical(obj: str, max_tilt: float = math.radians(15), axis: str = "z") -> Predicate:
+    """The object's `axis` within `max_tilt` (rad) of vertical, either way up: for shapes
+    symmetric under a flip (a cube, a pier, a long block stood on either end)."""
 
     def check(s: WorldState) -> bool:
         t = tilt(s, obj, axis)
         return min(t, math.pi - t) <= max_tilt
 
-    return Predicate(check, f"upright({obj!r}, max_tilt={max_tilt:.3g}, axis={axis!r})")
+    return Predicate(check, f"vertical({obj!r}, max_tilt={max_tilt:.3g}, axis={axis!r})")
 
 
 def level(obj: str, axis: str = "x", max_tilt: float = math.radians(15)) -> Predicate:
@@ -528,7 +542,7 @@ SETTLED_FOR = 0.3
 
 
 def hands_free(objects: Sequence[str], open_at: float = OPEN_AT) -> Predicate:
-    """Both grippers commanded open and no finger touching any of `objects`."""
+    """Both grippers commanded open and no robot body touching any of `objects`."""
     objects = tuple(objects)
 
     def check(s: WorldState) -> bool:
@@ -845,12 +859,13 @@ def stands_upright_at(
     z_tol: float = 0.01,
 ) -> Predicate:
     """`obj` stands on the table on an end: its `axis` (a long cuboid's length) within
-    `max_tilt` of vertical, its lowest corner at the table top, its centre within `tol` (m,
-    xy) of `center_xy`, no finger touching it (the other gripper may hold something else) and
+    `max_tilt` of vertical (either end down), its lowest corner at the table top, its centre
+    within `tol` (m, xy) of `center_xy`, no robot body touching it (the other gripper may hold
+    something else) and
     at rest. A lying, toppled, leaning, hovering or still-held object, or one beside the
     point, does not count."""
     parts = (
-        upright(obj, max_tilt, axis),
+        vertical(obj, max_tilt, axis),
         on_table(obj, z_tol),
         within_xy(obj, center_xy, tol),
         untouched(obj),

@@ -85,8 +85,10 @@ class WorldState:
 
     ``object_poses`` / ``tcp_poses``: name or side -> (7,) xyz + quaternion wxyz, world frame.
     ``joint_state`` and ``action``: 14-dim [left q(6), left opening, right q(6), right opening];
-    ``action`` is the command in effect (opening 1 = open). ``contacts``: object -> sides whose
-    fingers touch it. ``object_velocities``: object -> (6,) [v_xyz, w_xyz] in world (may be empty
+    ``action`` is the command in effect (opening 1 = open). ``contacts``: object -> sides any of
+    whose robot bodies (fingers, palm, wrist, links) touch it; ``finger_contacts``: object -> sides
+    whose fingers touch it (a subset of ``contacts``; when not given, taken to be ``contacts``).
+    ``object_velocities``: object -> (6,) [v_xyz, w_xyz] in world (may be empty
     for synthetic states). ``joint_positions``: sliding object (a drawer) -> its prismatic
     joint's position, m from its scene pose. ``scene`` gives initial poses and shapes (sizes)
     of the objects.
@@ -100,6 +102,7 @@ class WorldState:
     joint_state: np.ndarray = field(default_factory=lambda: np.zeros(14))
     action: np.ndarray = field(default_factory=lambda: _open_action())
     contacts: Mapping[str, frozenset[str]] = field(default_factory=dict)
+    finger_contacts: Mapping[str, frozenset[str]] | None = None
     object_velocities: Mapping[str, np.ndarray] = field(default_factory=dict)
     joint_positions: Mapping[str, float] = field(default_factory=dict)
 
@@ -111,11 +114,22 @@ class WorldState:
             for n, v in self.object_velocities.items()
         }
         contacts = {n: frozenset(sides) for n, sides in self.contacts.items()}
+        fingers = None
+        if self.finger_contacts is not None:
+            fingers = {n: frozenset(sides) for n, sides in self.finger_contacts.items()}
+            for name, sides in fingers.items():
+                if not sides <= contacts.get(name, frozenset()):
+                    raise ValueError(
+                        f"finger contacts of {name!r} ({sorted(sides)}) must also be robot "
+                        f"contacts ({sorted(contacts.get(name, ()))})"
+                    )
         set_ = object.__setattr__
         set_(self, "object_poses", MappingProxyType(poses))
         set_(self, "tcp_poses", MappingProxyType(tcps))
         set_(self, "object_velocities", MappingProxyType(vels))
         set_(self, "contacts", MappingProxyType(contacts))
+        if fingers is not None:
+            set_(self, "finger_contacts", MappingProxyType(fingers))
         joints = {n: float(d) for n, d in self.joint_positions.items()}
         set_(self, "joint_positions", MappingProxyType(joints))
         set_(self, "joint_state", _frozen_array(self.joint_state, (14,), "joint_state"))
@@ -154,7 +168,8 @@ class WorldState:
             tcp_poses={side: sim.tcp_pose(side) for side in SIDE_NAMES},
             joint_state=sim.joint_state(),
             action=np.asarray(action, dtype=float),
-            contacts=sim.finger_contacts(),
+            contacts=sim.robot_contacts(),
+            finger_contacts=sim.finger_contacts(),
             object_velocities=velocities,
             joint_positions=sim.joint_positions(),
         )
@@ -225,8 +240,14 @@ class WorldState:
         return float(self.action[GRIPPER_INDEX[side]])
 
     def touching(self, name: str) -> frozenset[str]:
-        """Sides whose fingers touch the object now."""
+        """Sides any of whose robot bodies (fingers, palm, wrist, links) touch the object now."""
         return self.contacts.get(name, frozenset())
+
+    def fingers_touching(self, name: str) -> frozenset[str]:
+        """Sides whose fingers touch the object now (what a grasp needs); the robot contacts
+        when the state was made without separate finger contacts."""
+        fingers = self.contacts if self.finger_contacts is None else self.finger_contacts
+        return fingers.get(name, frozenset())
 
 
 def _open_action() -> np.ndarray:

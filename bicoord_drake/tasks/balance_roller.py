@@ -33,7 +33,7 @@ from bicoord_drake.stages.predicates import (
     on_table,
     released,
     rests_on,
-    upright,
+    vertical,
 )
 from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
@@ -166,7 +166,7 @@ class BalanceRoller(Task):
             rests_on(ROLLER, BLOCK, xy_tol=XY_TOL),
             level(ROLLER, axis="z", max_tilt=MAX_TILT),
             released(ROLLER),
-            upright(BLOCK, max_tilt=MAX_TILT),
+            vertical(BLOCK, max_tilt=MAX_TILT),
             on_table(BLOCK),
         )
         return [

@@ -36,7 +36,7 @@ from bicoord_drake.stages.predicates import (
     spaced,
     spans,
     untouched,
-    upright,
+    vertical,
 )
 from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
@@ -177,7 +177,7 @@ class BuildBridge(Task):
         spacing = scene.draws["beam_length"] - scene.draws["section"]
         piers_set = all_of(
             *[on_table(p) for p in PIERS],
-            *[upright(p, max_tilt=MAX_TILT) for p in PIERS],
+            *[vertical(p, max_tilt=MAX_TILT) for p in PIERS],
             *[untouched(p) for p in PIERS],
             spaced(LEFT_PIER, RIGHT_PIER, spacing, tol=SPACING_TOL),
         )

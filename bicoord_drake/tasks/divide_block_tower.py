@@ -50,12 +50,12 @@ from bicoord_drake.stages.predicates import (
     latched,
     lifted,
     near_start,
+    on_a_face,
     on_table,
     on_top_of,
     settled,
     stacked,
     untouched,
-    upright,
     weighted,
     within_square,
 )
@@ -545,14 +545,10 @@ def _sign_xy(scene: Scene, k: str) -> list[float]:
     return scene.draws[f"sign_{k.lower()}_xy"]
 
 
-def _on_a_face(name: str) -> Predicate:
-    return any_of(*[upright(name, axis=a) for a in "xyz"])
-
-
 def _rests(name: str) -> Predicate:
     """`name` lies on the table or on another cube, on a face."""
     others = [on_top_of(name, o) for o in CUBES if o != name]
-    return all_of(any_of(on_table(name), *others), _on_a_face(name))
+    return all_of(any_of(on_table(name), *others), on_a_face(name))
 
 
 def _rests_on_sign(scene: Scene, name: str) -> Predicate:

@@ -53,10 +53,13 @@ def state(
     poses: dict | None = None,
     openings: tuple[float, float] = (1.0, 1.0),
     contacts: dict | None = None,
+    finger_contacts: dict | None = None,
     velocities: dict | None = None,
     step: int = 0,
 ) -> WorldState:
-    """The scene's initial state with some poses, gripper commands, contacts overridden."""
+    """The scene's initial state with some poses, gripper commands, contacts overridden.
+
+    `contacts` are the robot contacts (any arm body); `finger_contacts` default to them."""
     sc = sc or scene()
     base = WorldState.initial(sc)
     object_poses = {**base.object_poses, **(poses or {})}
@@ -69,5 +72,6 @@ def state(
         object_poses=object_poses,
         action=action,
         contacts=contacts or {},
+        finger_contacts=finger_contacts,
         object_velocities={**base.object_velocities, **(velocities or {})},
     )

@@ -130,6 +130,25 @@ def test_untouched_ignores_the_gripper_commands():
     assert P.untouched("small")(state(contacts={"large": {"right"}}, openings=(0.0, 1.0)))
 
 
+def test_a_palm_or_wrist_against_an_object_is_touching_but_not_holding():
+    # the palm (not a finger) of the left arm pins `small`: not released, not untouched, not held
+    palm = state(openings=(1.0, 1.0), contacts={"small": {"left"}}, finger_contacts={})
+    assert not P.released("small")(palm)
+    assert not P.untouched("small")(palm)
+    assert not P.hands_free(["small"])(palm)
+    closed_palm = state(openings=(0.0, 1.0), contacts={"small": {"left"}}, finger_contacts={})
+    assert not P.held_by("small", "left")(closed_palm)
+    fingers = state(
+        openings=(0.0, 1.0), contacts={"small": {"left"}}, finger_contacts={"small": {"left"}}
+    )
+    assert P.held_by("small", "left")(fingers)
+
+
+def test_finger_contacts_must_be_robot_contacts():
+    with pytest.raises(ValueError, match="must also be robot contacts"):
+        state(contacts={}, finger_contacts={"small": {"left"}})
+
+
 def test_held_by_side():
     held = state(openings=(0.0, 1.0), contacts={"small": {"left"}})
     assert P.held_by("small", "left")(held)
@@ -149,11 +168,29 @@ def test_upright_and_level():
     tilted = state(poses={"small": pose(-0.1, 0, 0.8, quat_about("x", math.radians(30)))})
     assert not P.upright("small", max_tilt=math.radians(15))(tilted)
     assert P.upright("small", max_tilt=math.radians(31))(tilted)
-    flipped = state(poses={"small": pose(-0.1, 0, 0.8, quat_about("x", math.pi))})
-    assert P.upright("small")(flipped)
     # the roller lies along x: level about x, not upright
     assert P.level("roller", axis="z")(state())
     assert not P.upright("roller")(state())
+
+
+def test_upright_means_the_right_way_up():
+    bowl = (0.2, -0.1, 0.8)
+    rim_down = state(poses={"bowl": pose(*bowl, quat_about("x", math.pi))})
+    assert not P.upright("bowl")(rim_down)
+    assert not P.upright("bowl", max_tilt=math.radians(30))(rim_down)
+    nearly_rim_down = state(poses={"bowl": pose(*bowl, quat_about("y", math.radians(170)))})
+    assert not P.upright("bowl")(nearly_rim_down)
+    assert P.upright("bowl")(state(poses={"bowl": pose(*bowl, quat_about("y", 0.1))}))
+
+
+def test_vertical_accepts_either_way_up_for_symmetric_shapes():
+    flipped = state(poses={"small": pose(-0.1, 0, 0.8, quat_about("x", math.pi))})
+    assert P.vertical("small")(flipped)
+    assert not P.upright("small")(flipped)
+    tilted = state(poses={"small": pose(-0.1, 0, 0.8, quat_about("x", math.radians(150)))})
+    assert not P.vertical("small")(tilted)
+    assert P.vertical("small", max_tilt=math.radians(31))(tilted)
+    assert not P.vertical("roller")(state())
 
 
 def test_at_rest_reads_velocities():
