@@ -56,8 +56,8 @@ import numpy as np
 from PIL import Image
 from pydantic import BaseModel, ConfigDict, Field
 
+from bicoord_drake.data.stage_rows import check_rows, stage_index_from_rows
 from bicoord_drake.models.scene import Scene
-from bicoord_drake.stages.monitor import check_rows, stage_index_from_rows
 
 if TYPE_CHECKING:
     from bicoord_drake.sim.frame_renderer import CameraFrame

@@ -31,13 +31,12 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Iterable
-from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
 import numpy as np
 
-from bicoord_drake.metrics.coordination import MIN_INITIAL_DISTANCE
+from bicoord_drake.data.trajectory import MIN_INITIAL_DISTANCE, Trajectory
 
 LAYOUTS = ("bicoord_drake", "robotwin", "bicoord")
 FORMATS = ("auto", *LAYOUTS)
@@ -46,26 +45,6 @@ SCHEMA_MAJOR = 1
 
 _LEFT_POSE, _RIGHT_POSE = "endpose/left_endpose", "endpose/right_endpose"
 _LEFT_GRIP, _RIGHT_GRIP = "joint_action/left_gripper", "joint_action/right_gripper"
-
-
-@dataclass(frozen=True, eq=False)
-class Trajectory:
-    """The per-episode signals the metrics use, independent of the file layout."""
-
-    source: str
-    task: str
-    layout: str
-    left_xyz: np.ndarray
-    right_xyz: np.ndarray
-    left_gripper: np.ndarray
-    right_gripper: np.ndarray
-    n_stages: int | None = None
-    n_objects: int | None = None
-    success: bool | None = None
-
-    @property
-    def length(self) -> int:
-        return len(self.left_xyz)
 
 
 def task_from_path(path: str | Path) -> str:

@@ -1,5 +1,5 @@
 """BiCoord metrics: coordination (SMT, SMP, MRD, ARD, STI), long-horizon (TL, SN, ON) and
-evaluation (SR, SSR, TL). Pure numpy; no Drake.
+evaluation (SR, SSR, TL). Numpy, plus h5py to read episode files; no Drake.
 
 Example::
 

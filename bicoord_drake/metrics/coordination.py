@@ -20,12 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from bicoord_drake.data.trajectory import MIN_INITIAL_DISTANCE
+
 MOVE_TOL = 1e-4
 """Default movement threshold in metres per frame."""
 CLOSED_BELOW = 0.5
 """Default gripper opening below which the gripper counts as closed."""
-MIN_INITIAL_DISTANCE = 1e-9
-"""Initial inter-arm distances at or below this (metres) are rejected as zero."""
 
 
 @dataclass(frozen=True)

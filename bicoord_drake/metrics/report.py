@@ -12,10 +12,12 @@ import io
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import numpy as np
 
+from bicoord_drake.data.readers import read_trajectories
+from bicoord_drake.data.trajectory import Trajectory
 from bicoord_drake.metrics.coordination import (
     CLOSED_BELOW,
     MOVE_TOL,
@@ -34,12 +36,9 @@ _PAPER = {
 PAPER_TABLE1 = {name: dict(zip(COLUMNS, row, strict=True)) for name, row in _PAPER.items()}
 """The paper's Table 1 (dataset means; SMP, MRD, ARD, STI in percent), for comparison."""
 
-if TYPE_CHECKING:
-    from bicoord_drake.data.readers import Trajectory
-
 
 class TrajectoryLike(Protocol):
-    """What the dataset functions read from a trajectory (e.g. ``readers.Trajectory``)."""
+    """What the dataset functions read from a trajectory (e.g. a :class:`Trajectory`)."""
 
     source: str
     task: str
@@ -196,9 +195,6 @@ def measure_paths(
     Returns the metrics of the good trajectories (``None`` if there is none), those trajectories,
     and one error line per bad path or file.
     """
-    # Imported here: the readers use this package's validity rules, so a top-level import cycles.
-    from bicoord_drake.data.readers import read_trajectories
-
     trajectories, errors = read_trajectories(paths, format)
     good, episodes = [], []
     for trajectory in trajectories:

@@ -23,6 +23,7 @@ import trimesh
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from bicoord_drake.models.geometry import Pose, Primitive, Rgba
+from bicoord_drake.models.shapes import BowlShape
 
 
 class PenShape(BaseModel):
@@ -86,10 +87,8 @@ class PenShape(BaseModel):
         return [(trimesh.util.concatenate(parts), self.accent)]
 
 
-def pen_holder(radius: float = 0.04, height: float = 0.10, wall: float = 0.004):
+def pen_holder(radius: float = 0.04, height: float = 0.10, wall: float = 0.004) -> BowlShape:
     """The pen holder: a straight open cup, `radius` outside, walls standing on its base."""
-    from bicoord_drake.models.objects import BowlShape
-
     return BowlShape(
         radius=radius, base_radius=radius, height=height, wall=wall, segments=24, walls_on_base=True
     )

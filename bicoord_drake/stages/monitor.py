@@ -29,6 +29,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from bicoord_drake.data.stage_rows import stage_index_from_rows
 from bicoord_drake.metrics.evaluation import stage_score
 from bicoord_drake.stages.predicates import reset_predicate
 from bicoord_drake.stages.stage import Stage, WorldState, resolve_dependencies
@@ -185,31 +186,3 @@ class StageMonitor:
     def stage_index(self, T: int | None = None) -> np.ndarray:
         """(T,) index of the stage active at each frame."""
         return stage_index_from_rows(self.annotations(T))
-
-
-def stage_index_from_rows(rows: Sequence[Sequence]) -> np.ndarray:
-    """(T,) stage index per frame from contiguous half-open rows covering ``[0, T)``."""
-    check_rows(rows)
-    T = int(rows[-1][1]) if rows else 0
-    index = np.empty(T, dtype=np.int64)
-    for j, row in enumerate(rows):
-        index[int(row[0]) : int(row[1])] = j
-    return index
-
-
-def check_rows(rows: Sequence[Sequence], T: int | None = None) -> None:
-    """Raise ValueError unless rows are ``[start, end, subgoal, left, right, score]``,
-    contiguous, non-empty, covering ``[0, T)``."""
-    expected = 0
-    for j, row in enumerate(rows):
-        if len(row) != 6:
-            raise ValueError(f"stage row {j} must be [start, end, subgoal, left, right, score]")
-        start, end = int(row[0]), int(row[1])
-        if start != expected or end <= start:
-            raise ValueError(
-                f"stage row {j} spans [{start}, {end}); rows must be contiguous and non-empty "
-                f"starting at {expected}"
-            )
-        expected = end
-    if T is not None and expected != T:
-        raise ValueError(f"stage rows cover [0, {expected}), expected [0, {T})")

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
+from bicoord_drake.data.stage_rows import check_rows
 from bicoord_drake.stages import Stage, StageMonitor, WorldState, stage_index_from_rows
-from bicoord_drake.stages.monitor import check_rows
 from tests.stages.helpers import scene
 
 SCENE = scene()
