@@ -75,7 +75,7 @@ class CameraConfig(BaseModel):
     width: int = Field(320, ge=16, le=4096)
     height: int = Field(240, ge=16, le=4096)
     depth: bool = False
-    head_fov_y_deg: float = Field(37.0, gt=5, lt=150)
+    head_fov_y_deg: float = Field(42.0, gt=5, lt=150)
     wrist_fov_y_deg: float = Field(72.0, gt=5, lt=150)
     depth_range: tuple[float, float] = (0.02, 3.0)
     shadows: bool = Field(False, description="directional lights cast shadows (costs time)")

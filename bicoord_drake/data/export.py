@@ -23,7 +23,9 @@ beside ``out`` and renamed when complete.
 
 from __future__ import annotations
 
+import ctypes
 import json
+import re
 import shutil
 import tempfile
 from collections.abc import Iterable, Iterator, Sequence
@@ -46,6 +48,18 @@ CAMERAS = {
 }
 """Our camera names and their LeRobot feature keys."""
 EXTRAS_FILE = "meta/bicoord_episodes.jsonl"
+#: Debian 12 packages with FFmpeg's shared libraries, which torchcodec (lerobot's video decoder)
+#: loads; the same list as ``.ci/run``.
+FFMPEG_DEBIAN_PACKAGES = (
+    "libavcodec59",
+    "libavformat59",
+    "libavutil57",
+    "libswscale6",
+    "libswresample4",
+    "libavdevice59",
+    "libavfilter8",
+)
+_FFMPEG_LIBRARY = re.compile(r"lib(av|sw|postproc)\w*\.so")
 _V21_CHUNK = 1000
 _V21_DATA = "data/chunk-{episode_chunk:03d}/episode_{episode_index:06d}.parquet"
 _V21_VIDEO = "videos/chunk-{episode_chunk:03d}/{video_key}/episode_{episode_index:06d}.mp4"
@@ -60,6 +74,44 @@ def require_lerobot() -> None:
             f"the LeRobot export needs lerobot ({exc}); install it with "
             f"pip install -e '.[lerobot]' && pip install --no-deps {LEROBOT_PIN}"
         ) from None
+
+
+class MissingFFmpegError(RuntimeError):
+    """torchcodec, which decodes the dataset's videos, cannot load FFmpeg's shared libraries."""
+
+
+def ffmpeg_install_command() -> str:
+    """The apt command that installs the FFmpeg libraries torchcodec needs (Debian 12)."""
+    return "sudo apt-get install -y " + " ".join(FFMPEG_DEBIAN_PACKAGES)
+
+
+def ffmpeg_installed() -> bool:
+    """Whether the dynamic loader finds FFmpeg's libavutil of a version torchcodec supports
+    (FFmpeg 4 to 8: libavutil.so.56 to .60)."""
+    for major in range(56, 61):
+        try:
+            ctypes.CDLL(f"libavutil.so.{major}")
+        except OSError:
+            continue
+        return True
+    return False
+
+
+def require_video_decoder() -> None:
+    """Raise :class:`MissingFFmpegError`, with the apt command that fixes it, if torchcodec
+    cannot load FFmpeg's shared libraries (a fresh machine without them). Writing an export does
+    not need them (lerobot encodes with PyAV, which bundles FFmpeg); loading it does."""
+    try:
+        import torchcodec.decoders  # noqa: F401
+    except (OSError, RuntimeError) as exc:
+        if not _FFMPEG_LIBRARY.search(str(exc)) or ffmpeg_installed():
+            raise  # another cause (e.g. a torch/torchcodec mismatch): torchcodec's own message
+        raise MissingFFmpegError(
+            "decoding the LeRobot dataset's videos needs FFmpeg's shared libraries, which "
+            "torchcodec (lerobot's video decoder) failed to load (the error above); install "
+            f"them with\n\n    {ffmpeg_install_command()}\n\n(Debian 12 package names; "
+            "torchcodec takes any FFmpeg 4 to 8 built with shared libraries)"
+        ) from exc
 
 
 @dataclass(frozen=True)
@@ -380,8 +432,10 @@ class ExportCheck:
 
 
 def load_lerobot(root: str | Path, repo_id: str) -> Any:
-    """``LeRobotDataset(repo_id, root=root)`` decoding videos with torchcodec, offline."""
+    """``LeRobotDataset(repo_id, root=root)`` decoding videos with torchcodec, offline.
+    Raises :class:`MissingFFmpegError` if torchcodec cannot load FFmpeg's libraries."""
     require_lerobot()
+    require_video_decoder()
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     return LeRobotDataset(repo_id, root=root, video_backend="torchcodec")

@@ -34,8 +34,11 @@ from bicoord_drake.models.embodiment import Embodiment
 
 RENDERER = "bicoord_vtk"
 
-#: Head camera: above and behind the robot, looking down at the table (world frame).
-HEAD_EYE = (-0.03, -0.45, 1.35)
+#: Head camera: above and behind the robot, looking down at the table centre (1 m away) from
+#: x = 0. With the default 42 deg vertical FOV (`CameraConfig.head_fov_y_deg`; 54 deg
+#: horizontal at 320x240, like RoboTwin's D435 head camera) both grippers at home and every task
+#: object are in the image (tests/sim/test_head_camera_view.py checks it by projection).
+HEAD_EYE = (0.0, -0.60, 1.55)
 HEAD_DIRECTION = (0.0, 0.6, -0.8)
 #: Wrist camera mount in the gripper link frame (x forward along the fingers, z up at home):
 #: above the palm, looking past the fingertips at the workspace ahead.

@@ -31,9 +31,10 @@ def test_every_camera_renders_a_non_constant_image(sim):
 def test_head_depth_is_in_millimetres(sim):
     sim.reset()
     depth = sim.images(depth=True)["head_camera_depth"]
-    # the table centre is 0.75 m below and 0.45 m ahead of the camera: 0.6 / 0.8 * ... ~0.75 m
+    # the camera looks along (0, 0.6, -0.8) at the table centre, 0.8 m below it and 0.6 m ahead:
+    # the table centre is 1 m away; cube_2 stands there, its top ~3 cm nearer
     centre = depth[120, 160]
-    assert 600 < centre < 1000
+    assert 940 < centre < 1000
 
 
 @pytest.mark.parametrize("moving", ["left", "right"])
@@ -75,7 +76,7 @@ def test_wrist_view_shows_fingertips_and_gripper_covers_under_a_quarter(sim, cam
 
 def test_intrinsics_follow_the_field_of_view(sim):
     K = sim.intrinsic_cv("head_camera")
-    fy = 120 / np.tan(np.deg2rad(37.0) / 2)
+    fy = 120 / np.tan(np.deg2rad(42.0) / 2)
     assert K[1, 1] == pytest.approx(fy)
     assert K[0, 2] == pytest.approx(159.5) and K[1, 2] == pytest.approx(119.5)
 
