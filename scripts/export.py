@@ -50,6 +50,12 @@ def main(argv: list[str] | None = None) -> int:
 
     from bicoord_drake.data import export
 
+    if args.check:
+        try:  # fail before a long export when the check could not decode its videos
+            export.require_video_decoder()
+        except (ImportError, export.MissingFFmpegError) as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            return 1
     try:
         result = export.export_lerobot(
             args.paths,
