@@ -101,6 +101,9 @@ class StationConfig(BaseModel):
     embodiment: str = "aloha_viperx"
     time_step: float = Field(1 / 300, gt=0, le=0.01, description="plant time step, s")
     contact_model: Literal["hydroelastic_with_fallback", "point"] = "hydroelastic_with_fallback"
+    contact_approximation: Literal["sap", "lagged", "similar", "lagrange"] = Field(
+        "sap", description="MultibodyPlant discrete_contact_approximation (all use SAP's solver)"
+    )
     control_rate: float = Field(15.0, gt=0, le=1000, description="control/recording rate, Hz")
     gravity_compensation: bool = True
     kp_scale: float = Field(1.0, gt=0, le=100, description="scales every arm PD stiffness")

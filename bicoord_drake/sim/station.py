@@ -180,7 +180,7 @@ def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
     plant, scene_graph = AddMultibodyPlant(
         MultibodyPlantConfig(
             time_step=config.time_step,
-            discrete_contact_approximation="sap",
+            discrete_contact_approximation=config.contact_approximation,
             contact_model=config.contact_model,
         ),
         builder,

@@ -136,3 +136,14 @@ def test_target_velocity_holds_up_to_the_period_boundary(sim):
     desired = st.interpolator.desired_states_output_port().Eval(ctx)[:14]
     home = st.embodiment.home_action()
     np.testing.assert_allclose(desired[7:13], (a[:6] - home[:6]) * 15.0, rtol=1e-9)
+
+
+def test_contact_approximation_is_the_plants():
+    station = build_station(
+        demo_scene("cubes"), StationConfig(render=False, contact_approximation="lagged")
+    )
+    assert station.plant.get_discrete_contact_approximation().name == "kLagged"
+    default = build_station(demo_scene("cubes"), StationConfig(render=False))
+    assert default.plant.get_discrete_contact_approximation().name == "kSap"
+    with pytest.raises(ValidationError, match="contact_approximation"):
+        StationConfig(contact_approximation="tamsi")
