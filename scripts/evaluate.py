@@ -16,8 +16,11 @@ reset(instruction) and act(obs) -> action, or a function act(obs). Evaluation se
 (the verdict is cached in ~/.cache/bicoord_drake/expert_check/, or $BICOORD_CACHE), except with
 --policy expert, where it is a failed rollout counted in SR and SSR. With --data the rollouts
 are the demonstrations' own seeds. The report (report.json, stage_success.png) goes to
-<out>/<task>/<policy>/. With --workers N or --backend ray the rollouts run in parallel (one
-environment and policy instance per worker); the report is the same as a sequential run's.
+<out>/<task>/<policy>/. Locally or with --backend ray the rollouts run in parallel (one
+environment and policy instance per worker; by default one per core, --workers 1 runs them in
+this process); the report is the same as a sequential run's. Exit status: 0 when the report
+was written, 1 on an error, 2 for bad arguments, 75 when the Ray cluster has no live node left
+(run it again), 130 when interrupted.
 """
 
 from __future__ import annotations
@@ -27,6 +30,9 @@ import json
 import sys
 
 from bicoord_drake.runner.backends import add_backend_arguments
+
+EXIT_CLUSTER_LOST = 75
+"""Exit status when the Ray cluster lost its last node (sysexits' EX_TEMPFAIL: run it again)."""
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -81,9 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--max-tries", type=int, default=0, help="seeds to try at most (default: 3 x episodes)"
     )
-    add_backend_arguments(
-        parser, "rollouts in flight (default: 1 locally, every CPU of the Ray cluster)"
-    )
+    add_backend_arguments(parser, "rollouts")
     parser.add_argument("--verbose", action="store_true", help="show Drake's and Ray's logs")
     args = parser.parse_args(argv)
 
@@ -93,6 +97,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from bicoord_drake.config import validation_message
     from bicoord_drake.policies import PolicyLoadError, load_policy
+    from bicoord_drake.runner.backends import ClusterLost, WorkerLost
     from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate, find_episodes
     from bicoord_drake.runner.generate import format_failure
     from bicoord_drake.tasks import list_tasks
@@ -160,7 +165,15 @@ def main(argv: list[str] | None = None) -> int:
     except PolicyLoadError as err:
         bar.close()
         return usage(format_failure(err).split(": ", 1)[-1])
-    except (ValueError, OSError, ImportError) as err:
+    except ClusterLost as err:
+        bar.close()
+        print(
+            f"stopped: {err}; no report was written: run the same command again "
+            "(with --ray-address, once the cluster is back)",
+            file=sys.stderr,
+        )
+        return EXIT_CLUSTER_LOST
+    except (ValueError, OSError, ImportError, WorkerLost) as err:
         bar.close()
         print(f"error: {format_failure(err)}", file=sys.stderr)
         return 1

@@ -14,7 +14,10 @@ Examples:
 Seeds are tried from --seed upward until --episodes succeed; an episode is kept only if the
 expert ran in physics and every stage verified. Failures and their reasons go to
 <out>/<task>/<config>/manifest.json; <out>/dataset_<config>.json lists the run's tasks.
-Running the same command again resumes where it stopped.
+Running the same command again resumes where it stopped. Exit status: 0 when every task has
+its episodes, 1 when some could not be made (or on an error), 2 for bad arguments, 75 when the
+Ray cluster has no live node left (nothing recorded for the seeds in flight: run it again),
+130 when interrupted.
 """
 
 from __future__ import annotations
@@ -24,6 +27,13 @@ import sys
 import time
 
 from bicoord_drake.runner.backends import add_backend_arguments
+
+EXIT_CLUSTER_LOST = 75
+"""Exit status when the Ray cluster lost its last node (sysexits' EX_TEMPFAIL: run it again)."""
+RESUME_HINT = (
+    "finished episodes are kept and the seeds in flight were not recorded: run the same "
+    "command again to resume (with --ray-address, once the cluster is back)"
+)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -68,11 +78,7 @@ def main(argv: list[str] | None = None) -> int:
         default=0,
         help="stop after this many seeds (default: 5 x episodes)",
     )
-    add_backend_arguments(
-        parser,
-        "seeds in flight (default: 1 locally, every CPU of the Ray cluster; "
-        "locally try the core count)",
-    )
+    add_backend_arguments(parser, "seeds")
     parser.add_argument(
         "--shared-fs",
         action="store_true",
@@ -87,8 +93,11 @@ def main(argv: list[str] | None = None) -> int:
     from pydantic import ValidationError
 
     from bicoord_drake.config import validation_message
+    from bicoord_drake.runner.backends import ClusterLost
     from bicoord_drake.runner.generate import (
         GenerateConfig,
+        RunProgress,
+        format_counts,
         format_failure,
         generate_dataset,
         resolve_tasks,
@@ -129,27 +138,31 @@ def main(argv: list[str] | None = None) -> int:
     from tqdm import tqdm
 
     bar = tqdm(total=config.episodes * len(tasks), unit="episode", dynamic_ncols=True)
-    first = True
+    last: RunProgress | None = None
 
-    def progress(status) -> None:
-        nonlocal first
-        if first:  # episodes kept by an earlier run do not count toward the rate (ETA)
-            first = False
+    def progress(status: RunProgress) -> None:
+        nonlocal last
+        if last is None:  # episodes kept by an earlier run do not count toward the rate (ETA)
             bar.initial = bar.n = bar.last_print_n = status.kept
+        last = status
         bar.update(status.kept - bar.n)
-        counts = " ".join(f"{t} {k}/{n}" for t, (k, _, n) in status.counts.items())
-        tried = sum(tr for _, tr, _ in status.counts.values())
-        bar.set_postfix_str(f"{counts} | tried {tried} | {status.message[:50]}")
+        bar.set_postfix_str(status.postfix())
 
     try:
         result = generate_dataset(config, progress)
     except KeyboardInterrupt:
         bar.close()
+        if last is not None and len(last.counts) > 1:
+            print(format_counts(last.counts), file=sys.stderr)
         print(
             "interrupted: finished episodes are kept; run the same command to resume",
             file=sys.stderr,
         )
         return 130
+    except ClusterLost as err:
+        bar.close()
+        print(f"stopped: {err}; {RESUME_HINT}", file=sys.stderr)
+        return EXIT_CLUSTER_LOST
     except (ValueError, OSError, ImportError) as err:
         bar.close()
         print(f"error: {format_failure(err)}", file=sys.stderr)
@@ -168,6 +181,7 @@ def main(argv: list[str] | None = None) -> int:
             print("\n" + summary.metrics_table)
     if len(result.tasks) > 1:
         print(f"\n{result.manifest}: {len(result.tasks)} tasks, {result.seconds:.0f} s")
+        print(format_counts(result.counts))
     print("\n" + result.throughput.describe(time.perf_counter() - started))
     return 0 if result.complete else 1
 

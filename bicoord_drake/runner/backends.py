@@ -9,13 +9,16 @@ A :class:`Backend` runs module-level functions and hands their results back as t
             jobs.remove(job)
             value = backend.result(job)      # its return value; re-raises its exception
 
-- ``local`` with one worker runs each job in this process when it is submitted;
-- ``local`` with N > 1 workers runs jobs in N spawned processes;
+- ``local`` with one worker runs each job in this process when its result is asked for;
+- ``local`` with N > 1 workers runs jobs in N spawned processes (``workers=0``: one per core of
+  this machine, :func:`local_workers`);
 - ``ray`` runs each job as a Ray task (1 CPU) on a local Ray instance started here, or on the
-  cluster at ``address`` (``auto``: the one ``ray start`` made on this node). A worker process
-  that dies during a job (killed, out of memory, node lost) makes Ray retry the job on another
-  worker, up to ``RAY_RETRIES`` times; after that :meth:`Backend.result` raises
-  :class:`WorkerLost`. Exceptions raised by the job itself are not retried.
+  cluster at ``address`` (``auto``: the one ``ray start`` made on this node); ``workers=0`` keeps
+  one job in flight per CPU of the cluster. A worker process that dies during a job (killed, out
+  of memory, node lost) makes Ray retry the job on another worker, up to ``RAY_RETRIES`` times;
+  after that :meth:`Backend.result` raises :class:`WorkerLost`, or :class:`ClusterLost` when no
+  node is left to run anything (this machine's raylet died, or no node of the cluster is alive):
+  then every further job would be lost too. Exceptions raised by the job itself are not retried.
 
 Workers are quiet: Drake's log and, on Ray, the workers' stdout/stderr stay off the driver's
 terminal unless ``verbose`` (jobs call :func:`quiet_worker` first).
@@ -43,6 +46,22 @@ RAY_RETRIES = 3
 
 class WorkerLost(RuntimeError):
     """The process running a job died (and, on Ray, so did every retry)."""
+
+
+class ClusterLost(RuntimeError):
+    """No node is left to run jobs (the Ray cluster has no live node, or this machine's raylet
+    died): the run must stop, and can resume once the cluster is back."""
+
+
+def local_workers(workers: int) -> int:
+    """Processes a local run uses: `workers`, or for 0 one per core this process may use."""
+    if workers > 0:
+        return workers
+    try:
+        cores = len(os.sched_getaffinity(0))  # honours taskset / cgroup CPU sets
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    return max(1, cores)
 
 
 def quiet_worker(verbose: bool = False) -> None:
@@ -83,24 +102,29 @@ class Backend(ABC):
 
 
 class InlineBackend(Backend):
-    """One worker: this process, running each job when it is submitted."""
+    """One worker: this process, running each job when its result is asked for (so a job
+    submitted is in flight until then, as on the other backends)."""
 
     slots = 1
 
+    def __init__(self) -> None:
+        self._jobs: dict[Future, tuple[Callable[..., Any], tuple]] = {}
+
     def submit(self, fn: Callable[..., Any], *args: Any) -> Future:
         future: Future = Future()
-        try:
-            future.set_result(fn(*args))
-        except BaseException as exc:  # noqa: BLE001 - re-raised by result()
-            if isinstance(exc, KeyboardInterrupt):
-                raise
-            future.set_exception(exc)
+        self._jobs[future] = (fn, args)
         return future
 
     def wait(self, handles: Sequence[Future]) -> Future:
         return handles[0]
 
     def result(self, handle: Future) -> Any:
+        if handle in self._jobs:
+            fn, args = self._jobs.pop(handle)
+            try:
+                handle.set_result(fn(*args))
+            except Exception as exc:  # noqa: BLE001 - re-raised below, as other backends do
+                handle.set_exception(exc)
         return handle.result()
 
     def describe(self) -> str:
@@ -167,10 +191,10 @@ def _init_process(threads: str, verbose: bool) -> None:
 class RayBackend(Backend):
     """Ray tasks of one CPU each, on a local instance or the cluster at `address`.
 
-    `workers` is how many jobs are in flight (0: every CPU of the cluster). The Ray instance is
-    started here when none is running in this process and `address` is None, and shut down by
-    :meth:`close`; a Ray already initialized by the caller (e.g. ``ray.init(num_cpus=2)``) is used
-    as it is and left running.
+    `workers` is how many jobs are in flight (0: every CPU of the cluster, at least 1). The Ray
+    instance is started here when none is running in this process and `address` is None, and
+    shut down by :meth:`close`; a Ray already initialized by the caller (e.g.
+    ``ray.init(num_cpus=2)``) is used as it is and left running.
     """
 
     def __init__(self, workers: int = 0, address: str | None = None, verbose: bool = False):
@@ -218,6 +242,12 @@ class RayBackend(Backend):
             exceptions.ObjectLostError,
             exceptions.LocalRayletDiedError,
         ) as exc:
+            # This machine's raylet gone: no job of this driver can be scheduled any more,
+            # whatever the other nodes' state (the GCS may not have noticed yet).
+            if isinstance(exc, exceptions.LocalRayletDiedError) or not self.alive():
+                raise ClusterLost(
+                    f"the Ray cluster has no live node ({type(exc).__name__})"
+                ) from exc
             raise WorkerLost(
                 f"its Ray worker died {RAY_RETRIES + 1} times ({type(exc).__name__})"
             ) from exc
@@ -226,6 +256,14 @@ class RayBackend(Backend):
             if isinstance(cause, BaseException):
                 raise cause from exc
             raise
+
+    def alive(self) -> bool:
+        """Whether any node of the cluster is alive (False when the GCS cannot be reached)."""
+        try:
+            nodes = self._ray.nodes()
+        except Exception:  # noqa: BLE001 - no answer from the GCS: no cluster to run on
+            return False
+        return any(node.get("Alive") for node in nodes)
 
     def close(self) -> None:
         if self._started:
@@ -238,21 +276,31 @@ class RayBackend(Backend):
 def make_backend(
     name: str, workers: int = 0, address: str | None = None, verbose: bool = False
 ) -> Backend:
-    """The backend called `name` (``local`` or ``ray``); `workers` 0 means 1 locally and every
-    CPU of the Ray cluster."""
+    """The backend called `name` (``local`` or ``ray``) with `workers` jobs in flight; 0 means
+    one per core of this machine (:func:`local_workers`), or on Ray one per CPU of the cluster.
+    One local worker runs the jobs in this process."""
     if name == "local":
         if address:
             raise ValueError("ray_address is for the ray backend: add --backend ray")
-        return ProcessBackend(workers, verbose) if workers > 1 else InlineBackend()
+        count = local_workers(workers)
+        return ProcessBackend(count, verbose) if count > 1 else InlineBackend()
     if name == "ray":
         return RayBackend(workers, address, verbose)
     raise ValueError(f"unknown backend {name!r}; backends: {', '.join(BACKENDS)}")
 
 
-def add_backend_arguments(parser: argparse.ArgumentParser, workers_help: str) -> None:
-    """The command-line options that choose a backend: ``--workers``, ``--backend`` and
-    ``--ray-address`` (shared by scripts/generate.py and scripts/evaluate.py)."""
-    parser.add_argument("--workers", type=int, default=0, help=workers_help)
+def add_backend_arguments(parser: argparse.ArgumentParser, what: str) -> None:
+    """The command-line options that choose a backend: ``--workers`` (`what` runs in parallel:
+    "seeds", "rollouts"), ``--backend`` and ``--ray-address`` (shared by scripts/generate.py and
+    scripts/evaluate.py)."""
+    parser.add_argument(
+        "--workers",
+        type=int,
+        default=0,
+        metavar="N",
+        help=f"{what} in flight (default: one per core of this machine, {local_workers(0)} here; "
+        "with --backend ray one per CPU of the cluster); 1 runs them in this process",
+    )
     parser.add_argument(
         "--backend",
         default="local",

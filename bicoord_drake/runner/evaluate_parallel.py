@@ -17,16 +17,17 @@ from pathlib import Path
 from typing import Any
 
 from bicoord_drake.data.episode import Episode, atomic_path, read_episode
+from bicoord_drake.env import Env
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.runner.backends import make_backend, quiet_worker
-from bicoord_drake.runner.evaluate import (
+from bicoord_drake.runner.rollouts import (
     EvaluateConfig,
     ExpertCheck,
     RolloutResult,
-    _make_env,
     evaluation_seed,
     expert_verdict,
     find_episodes,
+    make_evaluation_env,
     rollout,
 )
 from bicoord_drake.tasks import get_task
@@ -52,7 +53,18 @@ class RolloutOutcome:
 
 
 _WORKER: dict[str, Any] = {}
-_ENV_FIELDS = {"task", "policy", "resolution", "render", "depth", "action_mode", "step_limit"}
+_ENV_FIELDS = {
+    "task",
+    "policy",
+    "resolution",
+    "render",
+    "depth",
+    "action_mode",
+    "step_limit",
+    "randomize",
+    "split",
+}
+"""The settings a worker's environment and policy are built with: another value builds anew."""
 
 
 def rollout_job(
@@ -63,7 +75,9 @@ def rollout_job(
     task = get_task(config.task)
     outcome = RolloutOutcome(seed)
     if check:
-        outcome.verdict = expert_verdict(task, seed, config.fps)
+        outcome.verdict = expert_verdict(
+            task, seed, config.fps, randomize=config.randomize, split=config.split
+        )
         if not outcome.verdict["ok"]:
             return outcome
     fps = episode.fps if episode is not None else config.fps
@@ -85,7 +99,7 @@ def rollout_job(
     return outcome
 
 
-def _worker_env(task: Task, config: EvaluateConfig, seed: int, fps: float):
+def _worker_env(task: Task, config: EvaluateConfig, seed: int, fps: float) -> tuple[Env, Any]:
     """This worker's environment and policy for `config` (made once, reused across jobs)."""
     from bicoord_drake.policies import load_policy
 
@@ -93,7 +107,9 @@ def _worker_env(task: Task, config: EvaluateConfig, seed: int, fps: float):
     if _WORKER.get("key") != key:
         _WORKER.clear()
         _WORKER.update(
-            key=key, env=_make_env(task, config, seed, fps), policy=load_policy(config.policy)
+            key=key,
+            env=make_evaluation_env(task, config, seed, fps),
+            policy=load_policy(config.policy),
         )
     return _WORKER["env"], _WORKER["policy"]
 
@@ -106,7 +122,9 @@ def run_parallel(
 ) -> tuple[list[RolloutResult], list[dict[str, Any]], SceneStages | None]:
     """Rollouts and skipped seeds (both in seed order) and the last rollout's scene."""
     episodes = _demonstrations(task, config) if config.data else None
-    check = ExpertCheck(task, config.fps) if config.expert_check and not config.data else None
+    # as in a sequential run: the expert policy's rollouts are its check (a failed seed counts)
+    checked = config.expert_check and not config.data and config.policy != "expert"
+    check = ExpertCheck.for_config(task, config) if checked else None
     max_tries = len(episodes) if episodes is not None else config.max_tries or 3 * config.episodes
     # keyed by submission order (= seed order; demonstrations may share a seed)
     done: dict[int, RolloutResult] = {}

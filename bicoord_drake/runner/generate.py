@@ -28,6 +28,7 @@ import socket
 import tempfile
 import time
 import traceback
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -58,6 +59,7 @@ from bicoord_drake.data.episode import (
     write_json,
     write_manifest,
 )
+from bicoord_drake.models.appearance import Split
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.runner.backends import WorkerLost, make_backend, quiet_worker
@@ -93,7 +95,10 @@ class GenerateConfig(BaseModel):
     max_tries: int = Field(0, ge=0, description="give up after this many seeds (0: 5x episodes)")
     video: bool = True
     workers: int = Field(
-        0, ge=0, le=100_000, description="seeds in flight (0: 1 locally, every CPU on Ray)"
+        0,
+        ge=0,
+        le=100_000,
+        description="seeds in flight (0: one per core here, one per CPU of the Ray cluster)",
     )
     backend: Literal["local", "ray"] = "local"
     ray_address: str | None = Field(None, description="join this Ray cluster (auto, HOST:PORT)")
@@ -160,6 +165,7 @@ def run_expert(
     station_config: StationConfig,
     depth: bool = False,
     randomize: bool = False,
+    split: Split = "seen",
 ) -> EpisodeResult:
     """Run `task`'s expert for `seed` in physics and verify every stage.
 
@@ -167,8 +173,9 @@ def run_expert(
     from its recorded plant states (:class:`~bicoord_drake.sim.frame_renderer.FrameRenderer`),
     when `station_config` asks for cameras: a failed seed costs no rendering. The result's
     ``timings`` split the wall time into build, planning, physics, monitor, record, render and
-    jpeg seconds. With `randomize`, the scene gets its seed's randomized appearance from the
-    seen split (:meth:`~bicoord_drake.models.scene.Scene.randomized`).
+    jpeg seconds. With `randomize`, the scene gets its seed's randomized appearance from `split`
+    (:meth:`~bicoord_drake.models.scene.Scene.randomized`; generation uses the seen split, the
+    expert check of an evaluation its own).
 
     Any failure of the seed (planning, a stage not verified, an annotation that cannot be made)
     is returned with its reason; a ValueError only for a seed outside [0, 2**32)."""
@@ -177,7 +184,7 @@ def run_expert(
     with clock("build"):
         scene = task.sample_scene(seed)
         if randomize:
-            scene = scene.randomized("seen")
+            scene = scene.randomized(split)
         sim = Simulation(build_station(scene, station_config.model_copy(update={"render": False})))
         monitor = StageMonitor(task.stages(scene))
         recorder = EpisodeRecorder(
@@ -305,6 +312,16 @@ class DatasetSummary:
     def complete(self) -> bool:
         return all(s.kept >= s.target for s in self.tasks.values())
 
+    @property
+    def counts(self) -> dict[str, tuple[int, int, int]]:
+        """Task -> (kept, tried, target), as in :class:`RunProgress`."""
+        return {name: (s.kept, s.tried, s.target) for name, s in self.tasks.items()}
+
+
+POSTFIX_WIDTH = 60
+"""Characters of :meth:`RunProgress.postfix` at most (the bar, counts and ETA need the rest of
+a terminal line)."""
+
 
 @dataclass
 class RunProgress:
@@ -312,6 +329,7 @@ class RunProgress:
 
     counts: dict[str, tuple[int, int, int]]  # task -> (kept, tried, target)
     message: str
+    running: tuple[str, ...] = ()  # the task of every seed in flight, in submission order
 
     @property
     def kept(self) -> int:
@@ -320,6 +338,36 @@ class RunProgress:
     @property
     def target(self) -> int:
         return sum(t for _, _, t in self.counts.values())
+
+    def postfix(self, width: int = POSTFIX_WIDTH) -> str:
+        """One short line for a progress bar, whatever the number of tasks: tasks done, kept
+        and tried seeds over every task, and the task in flight (the one with the most seeds
+        running, ``+N`` for the others). The per-task counts are :func:`format_counts`'s."""
+        done = sum(1 for k, _, t in self.counts.values() if k >= t)
+        kept = sum(k for k, _, _ in self.counts.values())
+        tried = sum(tr for _, tr, _ in self.counts.values())
+        text = f"{done}/{len(self.counts)} tasks done, {kept}/{tried} kept/tried"
+        if self.running:
+            ranked = Counter(self.running).most_common()
+            others = f" +{len(ranked) - 1}" if len(ranked) > 1 else ""
+            room = max(width - len(text) - 2 - len(others), 4)
+            name = ranked[0][0]
+            if len(name) > room:
+                name = name[: room - 1] + "…"
+            text += f", {name}{others}"
+        return text if len(text) <= width else text[: width - 1] + "…"
+
+
+def format_counts(counts: dict[str, tuple[int, int, int]]) -> str:
+    """The per-task table of a run: kept, target, tried and failed seeds, then the totals."""
+    rows = [(t, k, n, tr, tr - k) for t, (k, tr, n) in counts.items()]
+    if len(rows) > 1:
+        rows.append(("all", *(sum(r[i] for r in rows) for i in range(1, 5))))
+    name = max(len("task"), *(len(r[0]) for r in rows))
+    header = ("task", "kept", "target", "tried", "failed")
+    lines = [f"{header[0]:<{name}}  " + "  ".join(f"{h:>6}" for h in header[1:])]
+    lines += [f"{r[0]:<{name}}  " + "  ".join(f"{v:>6}" for v in r[1:]) for r in rows]
+    return "\n".join(lines)
 
 
 def resolve_tasks(spec: str) -> list[str]:
@@ -360,7 +408,10 @@ def generate_dataset(
     Seeds run as jobs of the configured backend (:mod:`bicoord_drake.runner.backends`). This
     process alone assigns episode indices (in the order episodes finish), places the files and
     writes each task's ``manifest.json`` and the run's ``dataset_<config_name>.json``.
-    `progress` is called once at the start and after every finished seed."""
+    `progress` is called once at the start and after every finished seed.
+
+    Raises :class:`~bicoord_drake.runner.backends.ClusterLost` when the Ray cluster has no live
+    node left: the seeds in flight are not recorded, so running again resumes with them."""
     names = resolve_tasks(config.task)
     dataset = _DatasetManifest(config)  # checks the settings before any directory is made
     runs = [_TaskRun(config.for_task(name)) for name in names]
@@ -373,14 +424,16 @@ def generate_dataset(
         def report(message: str) -> None:
             if progress:
                 counts = {r.name: (r.kept, len(r.manifest.episodes), r.target) for r in runs}
-                progress(RunProgress(counts, message))
+                running = tuple(r.name for r, _ in pending.values())
+                progress(RunProgress(counts, message, running))
 
-        report(f"started on {dataset.backend}")
+        message = f"started on {dataset.backend}"
         while True:
             while len(pending) < pool.slots and (run := _neediest(runs)) is not None:
                 seed = run.take_seed()
                 job = pool.submit(produce_episode, run.config, seed, run.staging)
                 pending[job] = (run, seed)
+            report(message)  # with the seeds now in flight
             if not pending:
                 break
             job = pool.wait(list(pending))
@@ -392,7 +445,7 @@ def generate_dataset(
             run.record(outcome)
             throughput.add(outcome, config.fps)
             dataset.write(runs)
-            report(f"{run.name} seed {seed}: " + ("kept" if outcome.success else outcome.reason))
+            message = f"{run.name} seed {seed}: " + ("kept" if outcome.success else outcome.reason)
     dataset.write(runs)
     summaries = {r.name: r.summary() for r in runs}
     return DatasetSummary(

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import bicoord_drake.runner.evaluate as evaluate_module
+import bicoord_drake.runner.rollouts as rollouts_module
 from bicoord_drake.data.episode import EpisodeMeta, EpisodeRecorder
 from bicoord_drake.env import make_env
 from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate, evaluation_seed
@@ -40,6 +40,7 @@ def config(tmp_path, **kw):
         render=False,
         step_limit=4,
         expert_check=False,
+        workers=1,  # in this process: the fakes below patch it
         out=str(tmp_path / "eval"),
     )
     settings.update(kw)
@@ -109,7 +110,7 @@ def test_seeds_the_expert_fails_are_skipped_counted_and_cached(tmp_path, monkeyp
 
     calls = []
 
-    def fake_run_expert(task, seed, station_config, depth=False):
+    def fake_run_expert(task, seed, station_config, depth=False, randomize=False, split="seen"):
         calls.append(seed)
         ok = seed != 100001
         return generate.EpisodeResult(seed, ok, None if ok else "planning: ik_infeasible")
@@ -125,7 +126,7 @@ def test_seeds_the_expert_fails_are_skipped_counted_and_cached(tmp_path, monkeyp
     cached = Path(os.environ["BICOORD_CACHE"]) / "expert_check" / "jigsaw.json"
     assert len(json.loads(cached.read_text())) == 3
     # Edited code (a new fingerprint) checks the expert again.
-    monkeypatch.setattr(evaluate_module, "code_fingerprint", lambda: "edited")
+    monkeypatch.setattr(rollouts_module, "code_fingerprint", lambda: "edited")
     evaluate(cfg)
     assert calls == [100000, 100001, 100002] * 2
 
@@ -216,7 +217,7 @@ def test_cli_usage_errors_are_one_line_exit_2(args, words, capsys):
 def test_cli_json_end_to_end(tmp_path):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     args = ["--task", "jigsaw", "--policy", "tests.policies.dummy:Hold", "--episodes", "1"]
-    args += ["--no-render", "--no-expert-check", "--step-limit", "3", "--json"]
+    args += ["--no-render", "--no-expert-check", "--step-limit", "3", "--json", "--workers", "1"]
     args += ["--out", str(tmp_path)]
     result = subprocess.run(
         [sys.executable, str(SCRIPT), *args], capture_output=True, text=True, env=env, cwd=ROOT

@@ -25,6 +25,7 @@ def settings(tmp_path, name, **kw):
         render=False,
         step_limit=4,
         expert_check=False,
+        workers=1,
         out=str(tmp_path / name),
     )
     return EvaluateConfig(**{**base, **kw})
@@ -38,7 +39,7 @@ def test_ray_report_equals_the_sequential_one_and_videos_reach_the_driver(ray_cl
     kw = dict(render=True, resolution="64x48")
     alone = evaluate(settings(tmp_path, "alone", **kw))
     video = tmp_path / "videos"
-    on_ray = evaluate(settings(tmp_path, "ray", backend="ray", video=str(video), **kw))
+    on_ray = evaluate(settings(tmp_path, "ray", backend="ray", workers=0, video=str(video), **kw))
     assert summary(on_ray) == summary(alone)
     assert [r.seed for r in on_ray.rollouts] == [100000, 100001, 100002]
     assert (on_ray.sr, on_ray.ssr, on_ray.tl) == (alone.sr, alone.ssr, alone.tl)
@@ -49,11 +50,11 @@ def test_ray_report_equals_the_sequential_one_and_videos_reach_the_driver(ray_cl
 
 
 def test_ray_skips_seeds_the_cache_says_the_expert_fails(ray_cluster, tmp_path):
-    check = ExpertCheck(get_task("jigsaw"), 15.0)
+    check = ExpertCheck(get_task("jigsaw"), 15.0)  # the plain scene, as the evaluation below
     for seed in (100000, 100002, 100003):
         check.store(seed, {"ok": True, "reason": None})
     check.store(100001, {"ok": False, "reason": "planning: no grasp"})
-    report = evaluate(settings(tmp_path, "eval", backend="ray", expert_check=True))
+    report = evaluate(settings(tmp_path, "eval", backend="ray", workers=0, expert_check=True))
     assert [r.seed for r in report.rollouts] == [100000, 100002, 100003]
     assert report.skipped == [{"seed": 100001, "reason": "expert failed: planning: no grasp"}]
 

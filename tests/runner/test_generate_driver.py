@@ -68,7 +68,7 @@ def test_ray_settings_need_the_ray_backend():
 
 def test_several_tasks_one_run_one_dataset_manifest(fake, tmp_path):
     seen = []
-    config = GenerateConfig(task="jigsaw,cook", episodes=2, out=str(tmp_path))
+    config = GenerateConfig(task="jigsaw,cook", episodes=2, out=str(tmp_path), workers=1)
     result = generate_dataset(config, seen.append)
     assert set(result.tasks) == {"jigsaw", "cook"} and result.complete
     for task in ("jigsaw", "cook"):
@@ -98,7 +98,7 @@ def test_several_tasks_one_run_one_dataset_manifest(fake, tmp_path):
 
 
 def test_local_workers_stage_files_and_the_driver_moves_them(fake, tmp_path):
-    config = GenerateConfig(task="jigsaw", episodes=1, out=str(tmp_path))
+    config = GenerateConfig(task="jigsaw", episodes=1, out=str(tmp_path), workers=1)
     summary = generate(config)
     root = tmp_path / "jigsaw" / "default"
     assert summary.kept == 1
@@ -107,9 +107,9 @@ def test_local_workers_stage_files_and_the_driver_moves_them(fake, tmp_path):
 
 
 def test_other_settings_in_the_same_out_are_refused(fake, tmp_path):
-    generate(GenerateConfig(task="jigsaw", episodes=1, out=str(tmp_path)))
+    generate(GenerateConfig(task="jigsaw", episodes=1, out=str(tmp_path), workers=1))
     with pytest.raises(ValueError, match="different settings"):
-        generate(GenerateConfig(task="cook", episodes=1, out=str(tmp_path), fps=10))
+        generate(GenerateConfig(task="cook", episodes=1, out=str(tmp_path), fps=10, workers=1))
 
 
 class LosingBackend(InlineBackend):
@@ -123,13 +123,13 @@ class LosingBackend(InlineBackend):
 
 
 def test_a_lost_seed_is_recorded_and_tried_again_by_the_next_run(fake, monkeypatch, tmp_path):
-    config = GenerateConfig(task="jigsaw", episodes=1, out=str(tmp_path))
+    config = GenerateConfig(task="jigsaw", episodes=1, out=str(tmp_path), workers=1)
     monkeypatch.setattr(gen, "make_backend", lambda *a, **k: LosingBackend())
     first = generate(config)
     assert [f.reason.split(":")[0] for f in first.failures] == ["worker_lost", "planning"]
     assert first.kept == 1  # seed 2
     monkeypatch.setattr(gen, "make_backend", lambda *a, **k: InlineBackend())
-    again = generate(GenerateConfig(task="jigsaw", episodes=2, out=str(tmp_path)))
+    again = generate(GenerateConfig(task="jigsaw", episodes=2, out=str(tmp_path), workers=1))
     manifest = json.loads((tmp_path / "jigsaw" / "default" / "manifest.json").read_text())
     assert [(e["seed"], e["success"]) for e in manifest["episodes"]] == [
         (1, False),

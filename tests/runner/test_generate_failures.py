@@ -54,7 +54,7 @@ def test_a_seed_that_crashes_is_recorded_and_the_run_goes_on(tmp_path, monkeypat
 
     monkeypatch.setattr(gen, "run_expert", flaky)
     config = gen.GenerateConfig(
-        task="jigsaw", episodes=1, seed=4, max_tries=3, out=str(tmp_path), render=False
+        task="jigsaw", episodes=1, seed=4, max_tries=3, out=str(tmp_path), render=False, workers=1
     )
     summary = gen.generate(config)
     assert (summary.kept, summary.tried) == (0, 3)

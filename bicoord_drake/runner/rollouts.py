@@ -1,0 +1,357 @@
+"""What every evaluation path shares (sequential here, parallel in
+:mod:`bicoord_drake.runner.evaluate_parallel`): the settings, the environment, one rollout, the
+expert check and the demonstrations to replay.
+
+:mod:`bicoord_drake.runner.evaluate` drives an evaluation and re-exports the public names, so
+``from bicoord_drake.runner.evaluate import EvaluateConfig`` keeps working. Imports run one way:
+``evaluate -> evaluate_parallel -> rollouts`` and ``evaluate -> rollouts``.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import os
+import re
+import time
+import traceback
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from bicoord_drake.config import SEED_LIMIT, StationConfig, check_seed_range, parse_resolution
+from bicoord_drake.data.episode import (
+    Episode,
+    decode_rgb,
+    encode_jpeg,
+    package_version,
+    write_json,
+    write_video,
+)
+from bicoord_drake.env import EVAL_SEED_START, Env, InvalidActionError, make_env
+from bicoord_drake.models.appearance import Split
+from bicoord_drake.policies import bind_policy, reset_policy
+from bicoord_drake.runner import generate as generation
+from bicoord_drake.runner.backends import local_workers
+from bicoord_drake.tasks.base import Task
+
+
+def evaluation_seed(seed: int) -> int:
+    """The first evaluation seed for CLI ``--seed``: ``100000 * (1 + seed)``."""
+    return EVAL_SEED_START * (1 + int(seed))
+
+
+class EvaluateConfig(BaseModel):
+    """Settings of one evaluation (every field is a flag of scripts/evaluate.py)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    task: str
+    policy: str = Field(description="built-in name or package.module:name")
+    episodes: int = Field(100, ge=1, description="rollouts to run")
+    seed: int = Field(
+        0, ge=0, description="evaluation seeds start at 100000 * (1 + seed), below 2**32"
+    )
+    data: str | None = Field(None, description="demonstrations: their seeds and scenes")
+    stage: int | None = Field(None, ge=0, description="reset at the start of this stage")
+    video: str | None = Field(None, description="directory for head-camera rollout videos")
+    out: str = Field("eval", description="report directory root")
+    resolution: str = "320x240"
+    render: bool = True
+    depth: bool = False
+    randomize: bool = Field(
+        False, description="randomized textures, lights, table height, camera jitter, clutter"
+    )
+    split: Literal["seen", "unseen"] = Field(
+        "unseen", description="instructions and (with randomize) textures of this split"
+    )
+    action_mode: Literal["qpos", "endpose"] = "qpos"
+    fps: float = Field(15.0, gt=0, le=100, description="control rate (data: from the files)")
+    step_limit: int | None = Field(None, ge=1, description="override the task's step limit")
+    expert_check: bool = True
+    max_tries: int = Field(0, ge=0, description="seeds to try at most (0: 3 x episodes)")
+    workers: int = Field(
+        0,
+        ge=0,
+        le=100_000,
+        description="rollouts in flight (0: one per core here, one per CPU of the Ray cluster)",
+    )
+    backend: Literal["local", "ray"] = "local"
+    ray_address: str | None = Field(None, description="join this Ray cluster (auto, HOST:PORT)")
+    verbose: bool = Field(False, description="workers' Drake and Ray logs on the terminal")
+
+    @field_validator("resolution")
+    @classmethod
+    def _resolution(cls, value: str) -> str:
+        parse_resolution(value)
+        return value
+
+    @model_validator(mode="after")
+    def _consistent(self) -> EvaluateConfig:
+        if self.policy == "replay" and not self.data:
+            raise ValueError("the replay policy needs demonstrations: give data (--data DIR)")
+        if self.stage is not None and not self.data:
+            raise ValueError("a stage evaluation needs demonstrations: give data (--data DIR)")
+        if self.video and not self.render:
+            raise ValueError("video needs rendering: drop --no-render")
+        if not self.data:
+            first = evaluation_seed(self.seed)
+            largest = SEED_LIMIT // EVAL_SEED_START - 1
+            if first >= SEED_LIMIT:
+                raise ValueError(
+                    f"seed {self.seed}: evaluation seeds would start at 100000 * (1 + seed) = "
+                    f"{first}, past the largest seed 2**32 - 1; use a seed <= {largest}"
+                )
+            check_seed_range(first, self.max_tries or 3 * self.episodes, "evaluation seed")
+        if self.ray_address and self.backend != "ray":
+            raise ValueError("ray_address is a setting of the ray backend: add backend='ray'")
+        return self
+
+    @property
+    def parallel(self) -> bool:
+        """Rollouts run as backend jobs (Ray, or several local processes)."""
+        return self.backend != "local" or local_workers(self.workers) > 1
+
+    @property
+    def label(self) -> str:
+        """A file-name-safe name of the policy (and stage)."""
+        name = re.sub(r"[^A-Za-z0-9_.-]+", "-", self.policy).strip("-")
+        return name + (f"_stage{self.stage}" if self.stage is not None else "")
+
+
+@dataclass
+class RolloutResult:
+    """One rollout: outcome, per-stage completion, and the error if it failed by raising."""
+
+    seed: int
+    success: bool
+    score: float
+    steps: int
+    completed: list[bool]
+    credit: list[float]
+    start_stage: int = 0
+    episode: str | None = None
+    error: str | None = None
+    traceback: str | None = None
+    video: str | None = None
+    seconds: float = 0.0
+    left_xyz: np.ndarray | None = field(default=None, repr=False)
+    right_xyz: np.ndarray | None = field(default=None, repr=False)
+    grippers: np.ndarray | None = field(default=None, repr=False)
+
+    def to_json(self) -> dict[str, Any]:
+        out = asdict(self)
+        for key in ("left_xyz", "right_xyz", "grippers"):
+            out.pop(key)
+        return out
+
+
+# --------------------------------------------------------------------------- rollouts
+def rollout(
+    env: Env,
+    policy: Any,
+    *,
+    seed: int | None = None,
+    episode: Episode | None = None,
+    stage: int | None = None,
+    video: str | Path | None = None,
+) -> RolloutResult:
+    """Run one rollout of `policy` in `env` until done; never raises for policy faults."""
+    t0 = time.perf_counter()
+    obs = env.reset(seed, stage=stage, episode=episode)
+    frames: list[bytes] = []
+    left, right, grippers = [], [], []
+    error = tb = None
+
+    def record(o: dict[str, Any]) -> None:
+        if video is not None and "head_camera" in o:
+            frames.append(encode_jpeg(o["head_camera"]))
+
+    record(obs)
+    who = "policy"
+    try:
+        bind_policy(policy, env)
+        reset_policy(policy, env.instruction)
+        while not env.done:
+            tcp = (obs["left_endpose"][:3], obs["right_endpose"][:3])
+            who = "policy"
+            action = policy.act(obs)
+            who = "simulation"
+            obs, _ = env.step(action)
+            left.append(tcp[0])
+            right.append(tcp[1])
+            grippers.append(env.action[[6, 13]])
+            record(obs)
+    except InvalidActionError as exc:
+        error, tb = f"invalid action at step {env.steps}: {exc}", traceback.format_exc()
+    except Exception as exc:  # a fault ends this rollout only
+        error = f"{who} raised at step {env.steps}: {type(exc).__name__}: {exc}"
+        tb = traceback.format_exc()
+    info = env.info()
+    target = env.stage
+    done = info["completed"][target] if target is not None else info["success"]
+    success = bool(done) and error is None
+    result = RolloutResult(
+        seed=int(env.seed),
+        success=success,
+        score=float(info["score"]),
+        steps=env.steps,
+        completed=[bool(c) for c in info["completed"]],
+        credit=[float(c) for c in info["credit"]],
+        start_stage=env.start_stage,
+        episode=str(episode.path) if episode is not None else None,
+        error=error,
+        traceback=tb,
+        left_xyz=np.array(left).reshape(-1, 3),
+        right_xyz=np.array(right).reshape(-1, 3),
+        grippers=np.array(grippers).reshape(-1, 2),
+    )
+    if video is not None and frames:
+        path = write_video(video, (decode_rgb(f) for f in frames), env.config.control_rate)
+        result.video = str(path)
+    result.seconds = round(time.perf_counter() - t0, 3)
+    return result
+
+
+def make_evaluation_env(task: Task, config: EvaluateConfig, seed: int, fps: float) -> Env:
+    """The environment of an evaluation with `config`'s settings, built for `seed` at `fps`."""
+    return make_env(
+        task,
+        seed,
+        action_mode=config.action_mode,
+        resolution=config.resolution,
+        depth=config.depth,
+        render=config.render,
+        fps=fps,
+        split=config.split,
+        randomize=config.randomize,
+        step_limit=config.step_limit,
+    )
+
+
+# --------------------------------------------------------------------------- expert check
+def cache_dir() -> Path:
+    """$BICOORD_CACHE or ~/.cache/bicoord_drake."""
+    root = os.environ.get("BICOORD_CACHE") or os.path.join(
+        os.path.expanduser("~"), ".cache", "bicoord_drake"
+    )
+    return Path(root)
+
+
+@functools.cache
+def code_fingerprint() -> str:
+    """A short hash of the package's Python sources: changes whenever any expert, planner or
+    simulation code changes, released or not."""
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode())
+        digest.update(path.read_bytes())
+    return digest.hexdigest()[:12]
+
+
+class ExpertCheck:
+    """Whether the expert solves (task, seed) in physics, cached in a small JSON file.
+
+    The check runs on the scene the rollouts get: with `randomize`, the seed's randomized scene
+    of `split` (its table height and clutter change what the expert must do). The key holds the
+    seed, the control rate, that scene (``randomized-<split>``, nothing for the plain scene), the
+    package version and :func:`code_fingerprint`, so an expert changed in any way (an edited
+    checkout included) is checked again.
+    """
+
+    def __init__(
+        self,
+        task: Task,
+        fps: float,
+        path: Path | None = None,
+        *,
+        randomize: bool = False,
+        split: Split = "unseen",
+    ) -> None:
+        self.task, self.fps = task, float(fps)
+        self.randomize, self.split = bool(randomize), split
+        self.path = path or cache_dir() / "expert_check" / f"{task.name}.json"
+        try:
+            self._cache = json.loads(self.path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            self._cache = {}
+
+    @classmethod
+    def for_config(cls, task: Task, config: EvaluateConfig) -> ExpertCheck:
+        """The check of an evaluation with `config` (its control rate and scenes)."""
+        return cls(task, config.fps, randomize=config.randomize, split=config.split)
+
+    def _key(self, seed: int) -> str:
+        scene = f"@randomized-{self.split}" if self.randomize else ""
+        return f"{seed}@{self.fps:g}Hz{scene}@{package_version()}+{code_fingerprint()}"
+
+    def __call__(self, seed: int) -> tuple[bool, str | None]:
+        """(ok, reason) for `seed`, from the cache or by running the expert."""
+        if self.lookup(seed) is None:
+            verdict = expert_verdict(
+                self.task, seed, self.fps, randomize=self.randomize, split=self.split
+            )
+            self.store(seed, verdict)
+        return self.lookup(seed)
+
+    def lookup(self, seed: int) -> tuple[bool, str | None] | None:
+        """The cached (ok, reason) of `seed`, None if not checked yet."""
+        v = self._cache.get(self._key(seed))
+        return None if v is None else (bool(v["ok"]), v.get("reason"))
+
+    def store(self, seed: int, verdict: dict[str, Any]) -> None:
+        """Cache a verdict of :func:`expert_verdict` (e.g. one a worker computed)."""
+        self._cache[self._key(seed)] = verdict
+        try:
+            write_json(self.path, self._cache)
+        except OSError:
+            pass  # the cache is an optimisation
+
+
+def expert_verdict(
+    task: Task, seed: int, fps: float, *, randomize: bool = False, split: Split = "unseen"
+) -> dict[str, Any]:
+    """``{"ok": ..., "reason": ...}``: whether the expert solves `seed` in physics (no cameras),
+    on the plain scene or, with `randomize`, on the seed's randomized scene of `split`."""
+    station = StationConfig(control_rate=fps, render=False)
+    try:
+        result = generation.run_expert(task, seed, station, randomize=randomize, split=split)
+        return {"ok": result.success, "reason": result.reason}
+    except Exception as exc:  # an expert crash is a failed seed, not a failed run
+        return {"ok": False, "reason": f"expert crashed: {generation.format_failure(exc)}"}
+
+
+# --------------------------------------------------------------------------- evaluation
+def find_episodes(data: str | Path, task: str) -> list[Path]:
+    """Episode files of `task` under `data` (a file or a directory, searched recursively)."""
+    import h5py
+
+    root = Path(data)
+    if root.is_file():
+        paths = [root]
+    elif root.is_dir():
+        paths = sorted(root.rglob("*.hdf5"), key=_natural_key)
+    else:
+        raise ValueError(f"--data {root}: no such file or directory")
+    out = []
+    for p in paths:
+        try:
+            with h5py.File(p, "r") as f:
+                name = f.attrs.get("task")
+        except OSError:
+            continue
+        name = name.decode() if isinstance(name, bytes) else name
+        if name == task:
+            out.append(p)
+    if not out:
+        raise ValueError(f"--data {root}: no episode files of task {task!r}")
+    return out
+
+
+def _natural_key(path: Path) -> list:
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", str(path))]
