@@ -9,6 +9,9 @@ Subpackages: ``models`` (robot, objects, scenes), ``sim`` (station, cameras, ste
 (coordination and evaluation metrics; no Drake), ``data`` (episode files and readers),
 ``runner`` (generation and evaluation). Drake-dependent names load on first use, so
 ``import bicoord_drake.metrics`` stays light.
+
+Importing the package registers the Gymnasium ids ``bicoord_drake/<task>-v0``
+(:mod:`bicoord_drake.gym_env`; nothing of Drake is imported for it).
 """
 
 from importlib import import_module
@@ -27,6 +30,14 @@ _LAZY = {
 }
 
 __all__ = ["metrics", "__version__", *_LAZY]
+
+try:  # gymnasium is a base dependency; make_env works without it all the same
+    from bicoord_drake.gym_env import builtin_task_names as _builtin_task_names
+    from bicoord_drake.gym_env import register_envs as _register_envs
+except ImportError:  # pragma: no cover
+    pass
+else:
+    _register_envs(_builtin_task_names())
 
 
 def __getattr__(name: str):

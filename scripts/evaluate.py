@@ -7,6 +7,7 @@ Examples:
     python scripts/evaluate.py --task jigsaw --policy replay --data data/jigsaw --stage 2
     python scripts/evaluate.py --task jigsaw --policy noop --episodes 5 --no-expert-check --json
     python scripts/evaluate.py --task jigsaw --policy expert --episodes 3 --video videos/
+    python scripts/evaluate.py --task jigsaw --policy lerobot:outputs/train/act_jigsaw
     python scripts/evaluate.py --task jigsaw --policy my_pkg.policies:MyPolicy --backend ray
 
 Policies: a built-in (replay: the recorded actions of the --data episodes; expert: the task's
@@ -43,7 +44,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--task", required=True, help="task name (see the list on a wrong name)")
     parser.add_argument(
-        "--policy", required=True, help="replay | expert | noop | package.module:name"
+        "--policy",
+        required=True,
+        help="replay | expert | noop | package.module:name | lerobot:PATH (lerobot-train output)",
     )
     parser.add_argument("--episodes", type=int, default=100, help="rollouts (default 100)")
     parser.add_argument(

@@ -13,7 +13,10 @@ Load one with :func:`load_policy`:
   effect);
 - ``"package.module:name"``: a class (instantiated with the keyword arguments), a zero-argument
   factory (called), an object with ``act`` (used as is) or any other callable (used as
-  ``act(obs)``, with a no-op ``reset``).
+  ``act(obs)``, with a no-op ``reset``);
+- ``"lerobot:PATH"``: a LeRobot checkpoint (a ``lerobot-train`` output directory or a
+  ``pretrained_model`` folder) of any policy type lerobot has, with its saved pre/post-processors
+  (:mod:`bicoord_drake.policies.lerobot_policy`; needs torch and lerobot, imported only then).
 """
 
 from __future__ import annotations
@@ -61,18 +64,23 @@ class FunctionPolicy:
 
 
 def load_policy(spec: str, **kwargs: Any) -> Any:
-    """A policy from a built-in name or ``package.module:name`` (see the module docstring).
+    """A policy from a built-in name, ``package.module:name`` or ``lerobot:PATH`` (see the
+    module docstring).
 
     Raises :class:`PolicyLoadError` naming the problem (bad spec, module not importable, missing
     attribute, not a policy, constructor failure).
     """
     spec = str(spec).strip()
+    if spec.startswith("lerobot:"):
+        from bicoord_drake.policies.lerobot_policy import load_lerobot_policy
+
+        return load_lerobot_policy(spec, **kwargs)
     if spec in BUILTINS:
         return BUILTINS[spec](**kwargs)
     if not _SPEC.match(spec):
         raise PolicyLoadError(
-            f"policy spec {spec!r} must be a built-in ({', '.join(BUILTINS)}) or "
-            "'package.module:name'"
+            f"policy spec {spec!r} must be a built-in ({', '.join(BUILTINS)}), "
+            "'package.module:name' or 'lerobot:PATH'"
         )
     module_name, attr = spec.split(":")
     try:

@@ -1,0 +1,320 @@
+"""LeRobot checkpoints as policies: ``load_policy("lerobot:PATH")``, ``--policy lerobot:PATH``.
+
+``PATH`` is what ``lerobot-train`` wrote (its output directory, whose
+``checkpoints/last/pretrained_model`` is used), one checkpoint directory (``.../005000``, with
+``pretrained_model/`` in it) or a ``pretrained_model`` folder itself (``config.json``,
+``model.safetensors``, ``policy_preprocessor.json``, ``policy_postprocessor.json``). Any policy
+type the installed lerobot knows (ACT, Diffusion, SmolVLA, pi0, ...) loads through lerobot's
+own ``PreTrainedConfig.from_pretrained``, ``get_policy_class(type).from_pretrained`` and
+``make_pre_post_processors(config, pretrained_path=...)`` (the saved pre/post-processor
+pipelines: normalization statistics, tokenizer, device).
+
+Each step the policy gets, under the names of the LeRobot export (:mod:`bicoord_drake.data.export`)
+and only the features it was trained with: ``observation.state`` (14 measured joints),
+``observation.endpose`` (both TCP poses), ``observation.images.{head,left,right}`` as float CHW
+tensors in [0, 1], resized (bilinear, antialiased) to the size in its config, and the
+instruction as ``task``. Its ``select_action`` runs its action queue (chunks, temporal
+ensembling) and ``reset`` empties it at the start of every rollout. Observations of
+:mod:`bicoord_drake.env` and of the Gymnasium environment (:mod:`bicoord_drake.gym_env`, already
+keyed by those names) are both accepted.
+
+A checkpoint whose inputs the benchmark cannot provide is refused at load time, naming what is
+missing and what the environment offers; one that needs a camera the environment does not
+render (``--no-render``) fails its first action the same way.
+
+torch and lerobot are imported only here, when such a policy is loaded; without them (or
+without what lerobot's policy modules import) loading says how to install them:
+``pip install -e '.[train]' && pip install --no-deps lerobot==0.4.4``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from bicoord_drake.policies import PolicyLoadError
+
+PREFIX = "lerobot:"
+LEROBOT_PIN = "lerobot==0.4.4"
+#: The [train] extra is the [lerobot] one plus what lerobot's policy and config modules import
+#: (draccus, einops, diffusers, ...); lerobot itself goes in without its torch pin (pyproject).
+INSTALL_HINT = f"pip install -e '.[train]' && pip install --no-deps {LEROBOT_PIN}"
+STATE = "observation.state"
+ENDPOSE = "observation.endpose"
+#: Our camera names and the LeRobot image features they feed (as in the export).
+IMAGE_FEATURES = {
+    "head_camera": "observation.images.head",
+    "left_camera": "observation.images.left",
+    "right_camera": "observation.images.right",
+}
+#: Every input a BiCoord environment can provide, with its shape (images: 3 channels, any size).
+OFFERED = {
+    STATE: "(14,)",
+    ENDPOSE: "(14,)",
+    **{key: "(3, H, W)" for key in IMAGE_FEATURES.values()},
+}
+_CHECKPOINT_FILES = ("config.json", "model.safetensors")
+
+
+def find_checkpoint(path: str | Path) -> Path:
+    """The ``pretrained_model`` folder of `path` (see the module docstring); PolicyLoadError
+    saying what was looked for otherwise."""
+    root = Path(path).expanduser()
+    if not root.exists():
+        raise PolicyLoadError(f"lerobot policy: {root} does not exist")
+    candidates = [
+        root,
+        root / "pretrained_model",
+        root / "checkpoints" / "last" / "pretrained_model",
+    ]
+    for candidate in candidates:
+        if all((candidate / name).is_file() for name in _CHECKPOINT_FILES):
+            return candidate
+    raise PolicyLoadError(
+        f"lerobot policy: no checkpoint in {root}: expected a lerobot-train output directory "
+        "(checkpoints/last/pretrained_model), a checkpoint directory (pretrained_model/) or a "
+        f"pretrained_model folder ({' and '.join(_CHECKPOINT_FILES)})"
+    )
+
+
+def preload_triton() -> None:
+    """Load triton (if installed and not loaded yet) with its own LLVM symbols bound first.
+
+    torchvision imports ``torch._dynamo``, which imports triton; triton's library carries its
+    own LLVM, and loaded after a camera has rendered (Mesa's llvmpipe has put
+    ``libLLVM-15`` in the process) it binds to Mesa's LLVM and the process segfaults.
+    ``RTLD_DEEPBIND`` makes it use its own; loading it before any rendering needs nothing.
+    Call this before importing torchvision or lerobot in a process that may have rendered.
+    """
+    import importlib.util
+    import os
+
+    if "triton" in sys.modules or not hasattr(os, "RTLD_DEEPBIND"):
+        return
+    try:
+        if importlib.util.find_spec("triton") is None:
+            return
+    except (ImportError, ValueError):
+        return
+    flags = sys.getdlopenflags()
+    sys.setdlopenflags(flags | os.RTLD_DEEPBIND)
+    try:
+        import triton  # noqa: F401
+    except Exception:  # torch reports a broken triton itself, if it ever needs it
+        pass
+    finally:
+        sys.setdlopenflags(flags)
+
+
+def _require_lerobot() -> None:
+    preload_triton()
+    try:
+        import torch  # noqa: F401
+        from lerobot.configs.policies import PreTrainedConfig  # noqa: F401
+        from lerobot.policies.factory import get_policy_class  # noqa: F401
+    except ImportError as exc:
+        raise PolicyLoadError(
+            f"lerobot policies need torch, lerobot and the packages its policies import ({exc}); "
+            f"install them with {INSTALL_HINT}"
+        ) from None
+
+
+def _required_inputs(config: Any) -> dict[str, tuple[str, tuple[int, ...]]]:
+    """Input feature -> (type, shape) the policy needs from the environment: all of its
+    ``input_features`` but the language tokens its own processors make from ``task`` and the
+    placeholder cameras (``empty_camera_<i>``) that pi0-type policies fill themselves."""
+    out = {}
+    for key, feature in (config.input_features or {}).items():
+        kind = getattr(feature.type, "value", str(feature.type))
+        if kind == "LANGUAGE" or key.startswith("observation.images.empty_camera_"):
+            continue
+        out[key] = (kind, tuple(int(n) for n in feature.shape))
+    return out
+
+
+def check_features(config: Any, where: str = "this checkpoint") -> None:
+    """PolicyLoadError unless a BiCoord environment can provide every input of `config`."""
+    problems = []
+    missing = []
+    for key, (_, shape) in _required_inputs(config).items():
+        if key not in OFFERED:
+            missing.append(f"{key} {shape}")
+        elif key in (STATE, ENDPOSE) and shape != (14,):
+            problems.append(f"{key} has shape {shape}, the environment's is (14,)")
+        elif key in IMAGE_FEATURES.values() and (len(shape) != 3 or shape[0] != 3):
+            problems.append(f"{key} has shape {shape}, expected (3, H, W) RGB")
+    if missing or problems:
+        offered = ", ".join(f"{k} {s}" for k, s in OFFERED.items())
+        text = []
+        if missing:
+            text.append(f"it needs {', '.join(missing)}, which the environment does not provide")
+        text.extend(problems)
+        raise PolicyLoadError(
+            f"lerobot policy {where}: its input features do not match the environment: "
+            f"{'; '.join(text)}. The environment offers: {offered} (images at any size, "
+            "resized to the policy's)."
+        )
+
+
+def _step_names(pipeline_file: Path) -> set[str]:
+    """Registry names of the steps of a saved processor pipeline."""
+    try:
+        steps = json.loads(pipeline_file.read_text(encoding="utf-8")).get("steps", [])
+    except (OSError, ValueError):
+        return set()
+    return {s.get("registry_name") for s in steps if isinstance(s, dict)}
+
+
+class LeRobotPolicy:
+    """A LeRobot checkpoint behind the policy interface (see the module docstring).
+
+    `device`: where the policy runs (default: the checkpoint's, if available there, else the
+    first accelerator lerobot finds, else the CPU).
+    """
+
+    def __init__(self, path: str | Path, *, device: str | None = None) -> None:
+        self.path = find_checkpoint(path)
+        _require_lerobot()
+        from lerobot.configs.policies import PreTrainedConfig
+        from lerobot.policies.factory import get_policy_class, make_pre_post_processors
+
+        where = str(self.path)
+        # lerobot prints progress ("Loading weights from local directory") on stdout, where
+        # scripts/evaluate.py --json writes its report.
+        with contextlib.redirect_stdout(sys.stderr):
+            try:
+                config = PreTrainedConfig.from_pretrained(self.path)
+            except Exception as exc:
+                raise PolicyLoadError(
+                    f"lerobot policy {where}: cannot read its config.json "
+                    f"({type(exc).__name__}: {exc})"
+                ) from None
+            if device is not None:
+                config.device = device
+            check_features(config, where)
+            self.type = config.type
+            try:
+                policy_cls = get_policy_class(config.type)
+            except ImportError as exc:
+                raise PolicyLoadError(
+                    f"lerobot policy {where}: the {config.type!r} policy needs packages that are "
+                    f"not installed ({exc})"
+                ) from None
+            except Exception as exc:
+                raise PolicyLoadError(
+                    f"lerobot policy {where}: policy type {config.type!r} is not available in "
+                    f"this lerobot ({type(exc).__name__}: {exc})"
+                ) from None
+            try:
+                self.policy = policy_cls.from_pretrained(self.path, config=config)
+                overrides = {}
+                pre_file = self.path / "policy_preprocessor.json"
+                if "device_processor" in _step_names(pre_file):
+                    overrides["device_processor"] = {"device": str(config.device)}
+                self.preprocessor, self.postprocessor = make_pre_post_processors(
+                    config, pretrained_path=str(self.path), preprocessor_overrides=overrides
+                )
+            except PolicyLoadError:
+                raise
+            except Exception as exc:
+                raise PolicyLoadError(
+                    f"lerobot policy {where}: loading the {config.type} policy or its "
+                    f"processors failed ({type(exc).__name__}: {exc})"
+                ) from None
+        self.config = config
+        self.inputs = _required_inputs(config)
+        action = (config.output_features or {}).get("action")
+        self.action_size = int(np.prod(action.shape)) if action is not None else None
+        self.instruction = ""
+        self.policy.eval()
+
+    def __repr__(self) -> str:
+        return f"LeRobotPolicy({self.type}, {str(self.path)!r})"
+
+    # ---------------------------------------------------------------- policy interface
+    def reset(self, instruction: str) -> None:
+        """A new rollout: empty the action queue, remember the instruction."""
+        self.instruction = str(instruction)
+        self.policy.reset()
+
+    def act(self, obs: dict[str, Any]) -> np.ndarray:
+        """The next action (float64) for an environment observation."""
+        import torch
+
+        batch = self.batch(obs)
+        with torch.inference_mode():
+            batch = self.preprocessor(batch)
+            action = self.policy.select_action(batch)
+            action = self.postprocessor(action)
+        return np.asarray(action.detach().to("cpu", torch.float32).numpy(), dtype=float).reshape(-1)
+
+    # ---------------------------------------------------------------- observation -> batch
+    def batch(self, obs: dict[str, Any]) -> dict[str, Any]:
+        """`obs` as the LeRobot batch of size 1 the policy's preprocessor takes."""
+        import torch
+
+        available = self._features(obs)
+        missing = [key for key in self.inputs if key not in available]
+        if missing:
+            raise ValueError(
+                f"lerobot policy {self.path}: the observation lacks {', '.join(missing)} (it has "
+                f"{', '.join(sorted(available)) or 'nothing the policy can use'}); "
+                "images need rendering on and the camera in the environment"
+            )
+        batch: dict[str, Any] = {}
+        for key, (kind, shape) in self.inputs.items():
+            value = available[key]
+            if kind == "VISUAL":
+                batch[key] = _image_tensor(value, shape, torch)
+            else:
+                batch[key] = torch.as_tensor(
+                    np.asarray(value, dtype=np.float32).reshape(1, -1).copy()
+                )
+        task = obs.get("instruction", obs.get("task", self.instruction))
+        batch["task"] = [str(task)]
+        return batch
+
+    @staticmethod
+    def _features(obs: dict[str, Any]) -> dict[str, Any]:
+        """The LeRobot features found in an observation of either environment."""
+        out = {k: v for k, v in obs.items() if k in OFFERED}
+        if STATE not in out and "joint_state" in obs:
+            out[STATE] = obs["joint_state"]
+        if ENDPOSE not in out and "left_endpose" in obs and "right_endpose" in obs:
+            out[ENDPOSE] = np.concatenate([obs["left_endpose"], obs["right_endpose"]])
+        for camera, key in IMAGE_FEATURES.items():
+            if key not in out and camera in obs:
+                out[key] = obs[camera]
+        return out
+
+
+def _image_tensor(image: Any, shape: tuple[int, ...], torch: Any) -> Any:
+    """(H, W, 3) uint8 RGB -> (1, 3, h, w) float32 in [0, 1] at the policy's (h, w)."""
+    array = np.asarray(image)
+    if array.ndim != 3 or array.shape[-1] != 3:
+        raise ValueError(f"expected an (H, W, 3) RGB image, got shape {array.shape}")
+    scale = 255.0 if array.dtype == np.uint8 else 1.0
+    x = torch.from_numpy(np.ascontiguousarray(array)).permute(2, 0, 1).unsqueeze(0)
+    x = x.to(torch.float32) / scale
+    h, w = shape[-2], shape[-1]
+    if tuple(x.shape[-2:]) != (h, w):
+        x = torch.nn.functional.interpolate(
+            x, size=(h, w), mode="bilinear", align_corners=False, antialias=True
+        ).clamp_(0.0, 1.0)
+    return x
+
+
+def load_lerobot_policy(spec: str, **kwargs: Any) -> LeRobotPolicy:
+    """``"lerobot:PATH"`` -> :class:`LeRobotPolicy` (keyword arguments: ``device``)."""
+    path = spec[len(PREFIX) :].strip()
+    if not path:
+        raise PolicyLoadError(f"policy {spec!r}: give a checkpoint path after 'lerobot:'")
+    unknown = sorted(set(kwargs) - {"device"})
+    if unknown:
+        raise PolicyLoadError(f"policy {spec!r}: unknown arguments {unknown} (known: device)")
+    return LeRobotPolicy(path, **kwargs)

@@ -1,0 +1,181 @@
+"""load_policy("lerobot:PATH"): a tiny ACT checkpoint saved by lerobot itself (weights, config,
+pre/post-processors), loaded from the layouts lerobot writes, acting on real observations; clear
+errors for missing packages, bad paths and inputs the environment cannot provide."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from bicoord_drake.policies import PolicyLoadError, load_policy
+
+INSTALL = "pip install -e '.[train]' && pip install --no-deps lerobot==0.4.4"
+HEAD = "observation.images.head"
+
+
+def _fake_checkpoint(path):
+    path.mkdir(parents=True)
+    (path / "config.json").write_text("{}")
+    (path / "model.safetensors").write_bytes(b"")
+    return path
+
+
+def test_missing_lerobot_says_how_to_install(tmp_path, monkeypatch):
+    ckpt = _fake_checkpoint(tmp_path / "pretrained_model")
+    monkeypatch.setitem(sys.modules, "torch", None)  # import torch -> ImportError
+    with pytest.raises(PolicyLoadError) as err:
+        load_policy(f"lerobot:{ckpt}")
+    assert INSTALL in str(err.value)
+
+
+def test_bad_paths_are_named(tmp_path):
+    with pytest.raises(PolicyLoadError, match="does not exist"):
+        load_policy(f"lerobot:{tmp_path / 'nothing'}")
+    with pytest.raises(PolicyLoadError, match="no checkpoint in .*checkpoints/last"):
+        load_policy(f"lerobot:{tmp_path}")
+    with pytest.raises(PolicyLoadError, match="give a checkpoint path"):
+        load_policy("lerobot:")
+
+
+# ------------------------------------------------------------------ with torch and lerobot
+def _lerobot():
+    from bicoord_drake.policies.lerobot_policy import preload_triton
+
+    preload_triton()  # other tests of the session may have rendered (see its docstring)
+    pytest.importorskip("torch")
+    pytest.importorskip("lerobot.policies.act.modeling_act")
+    import torch
+    from lerobot.configs.types import FeatureType, PolicyFeature
+    from lerobot.policies.act.configuration_act import ACTConfig
+
+    return torch, FeatureType, PolicyFeature, ACTConfig
+
+
+def _act_config(inputs):
+    _, FeatureType, PolicyFeature, ACTConfig = _lerobot()
+    return ACTConfig(
+        input_features={k: PolicyFeature(getattr(FeatureType, t), s) for k, (t, s) in inputs},
+        output_features={"action": PolicyFeature(FeatureType.ACTION, (14,))},
+        device="cpu",
+        chunk_size=4,
+        n_action_steps=2,
+        dim_model=16,
+        n_heads=2,
+        dim_feedforward=32,
+        n_encoder_layers=1,
+        n_decoder_layers=1,
+        use_vae=False,
+        pretrained_backbone_weights=None,  # nothing to download
+    )
+
+
+@pytest.fixture(scope="module")
+def checkpoint(tmp_path_factory):
+    """A lerobot-train output directory holding a tiny ACT policy (state + 24x32 head image)."""
+    torch, *_ = _lerobot()
+    from lerobot.policies.act.modeling_act import ACTPolicy
+    from lerobot.policies.factory import make_pre_post_processors
+
+    config = _act_config([("observation.state", ("STATE", (14,))), (HEAD, ("VISUAL", (3, 24, 32)))])
+    torch.manual_seed(0)
+    policy = ACTPolicy(config)
+    stats = {
+        "observation.state": {"mean": torch.zeros(14), "std": torch.ones(14)},
+        HEAD: {"mean": torch.full((3, 1, 1), 0.5), "std": torch.full((3, 1, 1), 0.25)},
+        "action": {"mean": torch.zeros(14), "std": torch.full((14,), 0.1)},
+    }
+    pre, post = make_pre_post_processors(config, dataset_stats=stats)
+    root = tmp_path_factory.mktemp("train_out")
+    model_dir = root / "checkpoints" / "last" / "pretrained_model"
+    for saved in (policy, pre, post):
+        saved.save_pretrained(model_dir)
+    return root
+
+
+def test_loads_and_acts_on_a_real_observation(checkpoint):
+    from bicoord_drake import make_env
+    from bicoord_drake.policies.lerobot_policy import LeRobotPolicy
+
+    policy = load_policy(f"lerobot:{checkpoint}")  # the lerobot-train output directory
+    assert isinstance(policy, LeRobotPolicy) and policy.type == "act"
+    assert policy.path == checkpoint / "checkpoints" / "last" / "pretrained_model"
+    env = make_env("jigsaw", resolution="64x48")  # head image resized to the policy's 32x24
+    obs = env.reset()
+    policy.reset(env.instruction)
+    actions = [policy.act(obs)]
+    assert actions[0].shape == (14,) and actions[0].dtype == np.float64
+    assert np.isfinite(actions[0]).all()
+    obs, _ = env.step(actions[0])
+    actions.append(policy.act(obs))  # second of the chunk, from the queue
+    assert len(policy.policy._action_queue) == 0
+    policy.reset(env.instruction)  # a new rollout starts a new chunk
+    again = policy.act(env.reset())
+    assert np.allclose(again, actions[0], atol=1e-5)
+
+
+def test_pretrained_model_folder_and_gym_observation(checkpoint):
+    folder = checkpoint / "checkpoints" / "last" / "pretrained_model"
+    policy = load_policy(f"lerobot:{folder}", device="cpu")
+    policy.reset("Fill the grid.")
+    gym_obs = {  # keyed like bicoord_drake.gym_env (and the LeRobot export)
+        "observation.state": np.zeros(14, np.float32),
+        "observation.endpose": np.zeros(14, np.float32),
+        HEAD: np.full((24, 32, 3), 128, np.uint8),
+        "task": "Fill the grid.",
+    }
+    action = policy.act(gym_obs)
+    assert action.shape == (14,) and np.isfinite(action).all()
+
+
+def test_a_camera_the_environment_does_not_render_is_named(checkpoint):
+    policy = load_policy(f"lerobot:{checkpoint}")
+    policy.reset("x")
+    with pytest.raises(ValueError, match=f"lacks {HEAD}"):
+        policy.act({"joint_state": np.zeros(14), "instruction": "x"})
+
+
+@pytest.mark.parametrize(
+    "inputs,words",
+    [
+        (
+            [
+                ("observation.state", ("STATE", (14,))),
+                ("observation.environment_state", ("ENV", (9,))),
+            ],
+            ["observation.environment_state (9,)", "does not provide"],
+        ),
+        (
+            [("observation.state", ("STATE", (7,))), (HEAD, ("VISUAL", (3, 24, 32)))],
+            ["observation.state has shape (7,)"],
+        ),
+    ],
+)
+def test_input_mismatch_names_what_is_missing_and_what_is_offered(tmp_path, inputs, words):
+    config = _act_config(inputs)
+    ckpt = tmp_path / "pretrained_model"
+    config.save_pretrained(ckpt)  # refused from config.json, before any weights are read
+    (ckpt / "model.safetensors").write_bytes(b"")
+    with pytest.raises(PolicyLoadError) as err:
+        load_policy(f"lerobot:{tmp_path}")
+    message = str(err.value)
+    for word in [*words, "The environment offers", "observation.state (14,)", HEAD]:
+        assert word in message, message
+
+
+def test_loads_after_a_camera_rendered(checkpoint):
+    """Mesa's LLVM (rendering) and triton's (imported by torchvision) must not collide."""
+    code = (
+        "import sys\n"
+        "from bicoord_drake import make_env\n"
+        "from bicoord_drake.policies import load_policy\n"
+        "env = make_env('jigsaw', resolution='32x24')\n"
+        "obs = env.reset()\n"
+        "assert 'torch' not in sys.modules\n"
+        f"policy = load_policy({f'lerobot:{checkpoint}'!r})\n"
+        "policy.reset(env.instruction)\n"
+        "print(policy.act(obs).shape)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().endswith("(14,)")
