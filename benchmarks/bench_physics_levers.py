@@ -82,10 +82,11 @@ def replay_once(path: Path, variant: str) -> dict:
     from bicoord_drake.config import StationConfig
     from bicoord_drake.data.episode import read_episode
     from bicoord_drake.env import Env
-    from bicoord_drake.tasks.registry import get_task
+    from bicoord_drake.episode_setup import EpisodeSetup
 
     episode = read_episode(path, False)
-    env = Env(get_task(episode.task), StationConfig(render=False, **fields), seed=episode.seed)
+    station = StationConfig(render=False, embodiment=episode.embodiment, **fields)
+    env = Env(EpisodeSetup(task=episode.task, seed=episode.seed, station=station))
     env.reset(episode=episode)
     plant, physics, faces = env.sim.station.plant, 0.0, []
     advance = env.sim.step

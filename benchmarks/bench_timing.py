@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 from ruckig import DurationDiscretization, InputParameter, Ruckig, Trajectory
 
-from bicoord_drake.models.embodiment import get_embodiment
+from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import demo_scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import arm_base, grasp_candidates

@@ -104,6 +104,13 @@ class StationConfig(BaseModel):
     contact_approximation: Literal["sap", "lagged", "similar", "lagrange"] = Field(
         "sap", description="MultibodyPlant discrete_contact_approximation (all use SAP's solver)"
     )
+    hydroelastic_margin: float = Field(
+        0.0,
+        ge=0,
+        le=0.005,
+        description="hydroelastic contact margin, m (steadies flat-on-flat resting contact at "
+        "large time steps; 0 = Drake's default)",
+    )
     control_rate: float = Field(15.0, gt=0, le=1000, description="control/recording rate, Hz")
     gravity_compensation: bool = True
     kp_scale: float = Field(1.0, gt=0, le=100, description="scales every arm PD stiffness")

@@ -5,16 +5,25 @@
 >>> obs, info = env.step(obs["joint_state"])                          # one control period
 >>> info["completed"], info["score"], info["success"], info["step"]
 
+The episode is assembled from one :class:`~bicoord_drake.episode_setup.EpisodeSetup` (task,
+seed, randomize, split, embodiment, station settings) by
+:func:`~bicoord_drake.episode_setup.assemble`, as generation and the expert check build theirs.
+
+Sizes follow the robot (``make_env(..., embodiment=NAME)``): ``env.layout`` is its
+:class:`~bicoord_drake.models.layout.ActionLayout`, A = ``env.layout.action_size`` numbers
+``[left q (n), left opening, right q (n), right opening]`` (n arm joints; A = 14 for the
+default ViperX pair).
+
 Observations (a dict): ``head_camera``, ``left_camera``, ``right_camera`` (H, W, 3) uint8 RGB
 (absent with ``render=False``; with ``depth=True`` also ``<cam>_depth`` (H, W) uint16 mm),
-``joint_state`` (14,) measured ``[left q (6), left opening, right q (6), right opening]``,
+``joint_state`` (A,) measured ``[left q (n), left opening, right q (n), right opening]``,
 ``left_endpose`` / ``right_endpose`` (7,) TCP xyz + quaternion wxyz in the world frame, and
 ``instruction`` (one paraphrase of the task's instruction, from the *unseen* split by default).
 
 Actions, one per control period (PRODUCT.md: the station moves the joint targets linearly from the
 previous action to the new one over the period):
 
-- ``action_mode="qpos"``: 14 numbers, the joint targets and gripper openings (1 = open), exactly
+- ``action_mode="qpos"``: A numbers, the joint targets and gripper openings (1 = open), exactly
   what the expert commands (``joint_action/vector`` of the episode files).
 - ``action_mode="endpose"``: 16 numbers ``[left xyz, left quat wxyz, left opening, right xyz,
   right quat wxyz, right opening]``, converted to joint targets by inverse kinematics seeded from
@@ -48,26 +57,24 @@ from typing import Any, Literal
 
 import numpy as np
 
-from bicoord_drake.config import CameraConfig, StationConfig, check_seed, parse_resolution
+from bicoord_drake.config import CameraConfig, StationConfig, parse_resolution
 from bicoord_drake.data.episode import Episode, read_episode
-from bicoord_drake.models.embodiment import other_side
+from bicoord_drake.episode_setup import Assembly, EpisodeSetup, assemble
+from bicoord_drake.models.embodiment import SIDES, other_side
+from bicoord_drake.models.layout import POSE_SIZE, ActionLayout, default_embodiment
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.sim.simulation import Simulation
-from bicoord_drake.sim.station import build_station
-from bicoord_drake.stages import StageMonitor, WorldState
+from bicoord_drake.stages import WorldState
 from bicoord_drake.stages.stage import Stage
-from bicoord_drake.tasks import get_task
 from bicoord_drake.tasks.base import Split, Task, WorldView
 
 ActionMode = Literal["qpos", "endpose"]
-ACTION_SIZES: dict[str, int] = {"qpos": 14, "endpose": 16}
-ACTION_LAYOUTS: dict[str, str] = {
-    "qpos": "[left 6 joints, left opening, right 6 joints, right opening]",
-    "endpose": "[left xyz, left wxyz, left opening, right xyz, right wxyz, right opening]",
-}
+ACTION_MODES: tuple[str, ...] = ("qpos", "endpose")
+#: Numbers per arm of an end-pose action: the TCP pose (xyz + wxyz) and the opening.
+ENDPOSE_WIDTH = POSE_SIZE + 1
+ENDPOSE_LAYOUT = "[left xyz, left wxyz, left opening, right xyz, right wxyz, right opening]"
 #: First evaluation seed (PRODUCT.md: evaluation seeds are disjoint from generation seeds).
 EVAL_SEED_START = 100000
-SIDES = ("left", "right")
 
 
 class InvalidActionError(ValueError):
@@ -87,6 +94,7 @@ def make_env(
     randomize: bool = False,
     step_limit: int | None = None,
     data: str | Path | None = None,
+    embodiment: str | None = None,
 ) -> Env:
     """An :class:`Env` for `task` (a name or a Task) whose station is built for `seed`.
 
@@ -94,63 +102,54 @@ def make_env(
     faster); `fps` is the control rate; `step_limit` overrides the task's (TASKS.md); `data` is
     where ``reset(seed, stage=k)`` finds the demonstration of `seed`; `randomize` gives every
     scene its seed's randomization (`split`'s textures, lights, table height, clutter; a
-    demonstration's scene keeps its own).
+    demonstration's scene keeps its own); `embodiment` names the robot (default: the ViperX
+    pair; an unknown name lists the valid ones).
     """
-    if action_mode not in ACTION_SIZES:
-        raise ValueError(f"action_mode must be 'qpos' or 'endpose', got {action_mode!r}")
+    _check_action_mode(action_mode)
     width, height = parse_resolution(resolution) if isinstance(resolution, str) else resolution
-    config = StationConfig(
-        control_rate=fps,
-        render=render,
-        cameras=CameraConfig(width=int(width), height=int(height), depth=depth),
-    )
-    task_obj = get_task(task) if isinstance(task, str) else task
-    return Env(
-        task_obj,
-        config,
+    setup = EpisodeSetup(
+        task=task,
         seed=seed,
-        action_mode=action_mode,
-        split=split,
         randomize=randomize,
-        step_limit=step_limit,
-        data=data,
+        split=split,
+        embodiment=embodiment or default_embodiment(),
+        station=StationConfig(
+            control_rate=fps,
+            render=render,
+            cameras=CameraConfig(width=int(width), height=int(height), depth=depth),
+        ),
     )
+    return Env(setup, action_mode=action_mode, step_limit=step_limit, data=data)
+
+
+def _check_action_mode(action_mode: str) -> None:
+    if action_mode not in ACTION_MODES:
+        raise ValueError(f"action_mode must be 'qpos' or 'endpose', got {action_mode!r}")
 
 
 class Env:
     """One task in simulation, stepped one control period per action (see the module docstring).
 
-    Attributes a privileged (built-in) policy may read: ``task``, ``scene``, ``sim``,
-    ``episode`` (the demonstration of the last reset, if any), ``stage`` (the stage of a stage
-    rollout, else None), ``start_frame`` (its first recorded frame), ``action`` (the joint action
-    in effect).
+    Built from an :class:`~bicoord_drake.episode_setup.EpisodeSetup` (its seed is the first
+    scene's; ``reset(seed)`` takes the same settings to another seed). Attributes a privileged
+    (built-in) policy may read: ``task``, ``scene``, ``sim``, ``layout``, ``episode`` (the
+    demonstration of the last reset, if any), ``stage`` (the stage of a stage rollout, else
+    None), ``start_frame`` (its first recorded frame), ``action`` (the joint action in effect).
     """
 
     def __init__(
         self,
-        task: Task,
-        config: StationConfig,
+        setup: EpisodeSetup,
         *,
-        seed: int = EVAL_SEED_START,
         action_mode: ActionMode = "qpos",
-        split: Split = "unseen",
-        randomize: bool = False,
         step_limit: int | None = None,
         data: str | Path | None = None,
     ) -> None:
-        if action_mode not in ACTION_SIZES:
-            raise ValueError(f"action_mode must be 'qpos' or 'endpose', got {action_mode!r}")
+        _check_action_mode(action_mode)
         if step_limit is not None and step_limit < 1:
             raise ValueError(f"step_limit must be positive, got {step_limit}")
-        self.task = task
-        self.config = config
         self.action_mode: ActionMode = action_mode
-        self.split: Split = split
-        self.randomize = randomize
-        self.step_limit = int(step_limit or task.step_limit)
-        self.seed: int | None = None
-        self.scene: Scene | None = None
-        self.sim: Simulation | None = None
+        self.assembly: Assembly | None = None
         self.episode: Episode | None = None
         self.stage: int | None = None
         self.start_stage = 0
@@ -158,28 +157,67 @@ class Env:
         self.instruction = ""
         self.data = None if data is None else Path(data)
         self._ik: _EndposeIK | None = None
-        self._build(int(seed), None)
+        self._build(setup)
+        self.step_limit = int(step_limit or self.task.step_limit)
         self._ready = False
 
     # ---------------------------------------------------------------- construction
     @property
+    def setup(self) -> EpisodeSetup:
+        """The settings of the current scene (task, seed, randomize, split, robot, station)."""
+        return self.assembly.setup
+
+    @property
+    def task(self) -> Task:
+        return self.assembly.task
+
+    @property
+    def config(self) -> StationConfig:
+        return self.setup.station
+
+    @property
+    def split(self) -> Split:
+        return self.setup.split
+
+    @property
+    def randomize(self) -> bool:
+        return self.setup.randomize
+
+    @property
+    def seed(self) -> int:
+        return self.setup.seed
+
+    @property
+    def scene(self) -> Scene:
+        return self.assembly.scene
+
+    @property
+    def sim(self) -> Simulation:
+        return self.assembly.sim
+
+    @property
+    def embodiment(self) -> str:
+        return self.setup.embodiment
+
+    @property
+    def layout(self) -> ActionLayout:
+        """The robot's action / joint-state layout."""
+        return self.assembly.layout
+
+    @property
     def action_size(self) -> int:
-        return ACTION_SIZES[self.action_mode]
+        if self.action_mode == "endpose":
+            return len(SIDES) * ENDPOSE_WIDTH
+        return self.layout.action_size
 
     @property
     def stages(self) -> tuple[Stage, ...]:
         """The task's stages for the current scene (as defined by the task)."""
-        return self._stages
+        return self.assembly.stages
 
-    def _build(self, seed: int, scene: Scene | None) -> None:
-        seed = check_seed(seed)
-        if scene is None:
-            scene = self.task.sample_scene(seed)
-            scene = scene.randomized(self.split) if self.randomize else scene
-        if self.sim is None or scene != self.scene:
-            self.sim = Simulation(build_station(scene, self.config))
-        self.seed, self.scene = seed, scene
-        self._stages = tuple(self.task.stages(scene))
+    def _build(self, setup: EpisodeSetup) -> None:
+        """Assemble `setup`'s episode (the simulation is kept when the scene is the same)."""
+        self.assembly = assemble(setup, self.assembly)
 
     def world_view(self) -> WorldView:
         """Privileged read-only state of the simulation (what the expert sees)."""
@@ -206,11 +244,11 @@ class Env:
         if episode is not None:
             episode = episode if isinstance(episode, Episode) else read_episode(episode, False)
             self._check_episode(episode, seed)
-            self._build(episode.seed, episode.scene)
+            self._build(self.setup.with_scene(episode.seed, episode.scene))
         elif seed is not None and int(seed) != self.seed:
-            self._build(int(seed), None)
-        if stage is not None and not 0 <= int(stage) < len(self._stages):
-            raise ValueError(f"stage must be in [0, {len(self._stages)}), got {stage}")
+            self._build(self.setup.for_seed(int(seed)))
+        if stage is not None and not 0 <= int(stage) < len(self.stages):
+            raise ValueError(f"stage must be in [0, {len(self.stages)}), got {stage}")
         self.episode = episode
         self.stage = None if stage is None else int(stage)
         stage = self.stage or 0
@@ -222,9 +260,8 @@ class Env:
         else:
             self._restore(episode, stage)
         self.start_stage = stage
-        self.monitor = StageMonitor(self._stages, given=stage)
-        rng = np.random.default_rng(self.seed)
-        self.instruction = self.task.instruction(rng, self.split)
+        self.monitor = self.assembly.new_monitor(given=stage)
+        self.instruction = self.setup.instruction()
         self.steps = 0
         self.ik_failed: list[str] = []
         self._ready = True
@@ -257,10 +294,17 @@ class Env:
             )
         if seed is not None and int(seed) != episode.seed:
             raise ValueError(f"{episode.path}: recorded with seed {episode.seed}, not {seed}")
-        if len(episode.stages) != len(self._stages):
+        if len(episode.stages) != len(self.stages):
             raise ValueError(
                 f"{episode.path}: {len(episode.stages)} stages recorded, the task has "
-                f"{len(self._stages)}"
+                f"{len(self.stages)}"
+            )
+        if episode.embodiment != self.embodiment:
+            raise ValueError(
+                f"{episode.path}: recorded with embodiment {episode.embodiment!r} but this "
+                f"environment runs {self.embodiment!r} (make_env(..., "
+                f"embodiment={episode.embodiment!r}); scripts/evaluate.py: --embodiment "
+                f"{episode.embodiment})"
             )
         if abs(episode.fps - self.config.control_rate) > 1e-9:
             raise ValueError(
@@ -310,7 +354,7 @@ class Env:
                 f"action is not a numeric array ({exc}); not executed"
             ) from None
         if a.shape != (self.action_size,):
-            layout = ACTION_LAYOUTS[self.action_mode]
+            layout = ENDPOSE_LAYOUT if self.action_mode == "endpose" else self.layout.describe()
             raise InvalidActionError(
                 f"action must have shape ({self.action_size},) for action_mode="
                 f"{self.action_mode!r} {layout}, got {a.shape}; not executed"
@@ -321,25 +365,28 @@ class Env:
                 f"action contains NaN or infinite values at indices {bad.tolist()}; not executed"
             )
         if self.action_mode == "endpose":
-            for side, k in (("left", 3), ("right", 11)):
-                if np.linalg.norm(a[k : k + 4]) < 1e-6:
+            for k, side in enumerate(SIDES):
+                start = k * ENDPOSE_WIDTH + 3
+                if np.linalg.norm(a[start : start + 4]) < 1e-6:
                     raise InvalidActionError(f"{side} quaternion is zero; not executed")
         return a
 
     def _endpose_to_qpos(self, a: np.ndarray) -> np.ndarray:
-        if self._ik is None:
+        if self._ik is None:  # the robot is the environment's for good
             self._ik = _EndposeIK(self.sim.station.embodiment)
         out = self.action.copy()
         measured = self.sim.joint_state()
+        layout = self.layout
         self.ik_failed = []
         for k, side in enumerate(SIDES):
-            pose = a[8 * k : 8 * k + 7]
-            q = self._ik.solve(side, pose, measured[7 * k : 7 * k + 6])
+            start = k * ENDPOSE_WIDTH
+            pose = a[start : start + POSE_SIZE]
+            q = self._ik.solve(side, pose, measured[layout.arm(side)])
             if q is None:
                 self.ik_failed.append(side)
             else:
-                out[7 * k : 7 * k + 6] = q
-            out[7 * k + 6] = a[8 * k + 7]
+                out[layout.arm(side)] = q
+            out[layout.gripper(side)] = a[start + POSE_SIZE]
         return out
 
     # ---------------------------------------------------------------- reading
@@ -400,7 +447,7 @@ class _EndposeIK:
         self._nlp = None if self.closed_form else BimanualIK(self.model, analytic=False)
 
     def solve(self, side: str, pose: np.ndarray, seed: np.ndarray) -> np.ndarray | None:
-        """Joint angles (6,) putting `side`'s TCP at `pose`, or None when unreachable."""
+        """Joint angles (n,) putting `side`'s TCP at `pose`, or None when unreachable."""
         from pydrake.all import Quaternion, RigidTransform
 
         from bicoord_drake.planning.errors import PlanningError

@@ -13,11 +13,12 @@ alone cannot register them.
 
 Spaces, keyed like the LeRobot export (:mod:`bicoord_drake.data.export`):
 
-- observation (``Dict``): ``observation.state`` (14,) float32 measured joints ``[left 6, left
-  opening, right 6, right opening]``; ``observation.endpose`` (14,) float32 both TCP poses
-  (xyz + quaternion wxyz, left then right); ``observation.images.{head,left,right}`` (H, W, 3)
-  uint8 RGB for the cameras that are on; ``task`` (``Text``) the instruction.
-- action (``Box``): 14 joint targets and openings (``action_mode="qpos"``, the export's
+- observation (``Dict``): ``observation.state`` (A,) float32 measured joints ``[left n, left
+  opening, right n, right opening]`` (the robot's layout: A = 14 for the default ViperX pair);
+  ``observation.endpose`` (14,) float32 both TCP poses (xyz + quaternion wxyz, left then
+  right); ``observation.images.{head,left,right}`` (H, W, 3) uint8 RGB for the cameras that are
+  on; ``task`` (``Text``) the instruction.
+- action (``Box``): A joint targets and openings (``action_mode="qpos"``, the export's
   ``action``; bounds: the joint limits and [0, 1]) or 16 numbers of end poses
   (``action_mode="endpose"``: xyz, quaternion wxyz, opening per arm).
 
@@ -37,7 +38,7 @@ step limit (the task's, or ``step_limit=``) ended it. ``info`` is the environmen
 Keyword arguments of ``gymnasium.make``: ``render`` (cameras on/off; off is much faster),
 ``cameras`` (which of them are observed), ``resolution`` (``"WxH"``), ``randomize``,
 ``split``, ``seed``, ``action_mode``, ``fps``, ``step_limit``, ``data`` (demonstrations for
-stage resets).
+stage resets), ``embodiment`` (the robot; default the ViperX pair).
 """
 
 from __future__ import annotations
@@ -131,6 +132,7 @@ class BiCoordEnv(gymnasium.Env):
         fps: float = 15.0,
         step_limit: int | None = None,
         data: str | Path | None = None,
+        embodiment: str | None = None,
     ) -> None:
         from bicoord_drake.config import (
             CAMERA_NAMES,
@@ -139,13 +141,14 @@ class BiCoordEnv(gymnasium.Env):
             check_seed,
             parse_resolution,
         )
-        from bicoord_drake.env import ACTION_SIZES, EVAL_SEED_START, Env
-        from bicoord_drake.tasks import get_task
+        from bicoord_drake.env import ACTION_MODES, EVAL_SEED_START, Env
+        from bicoord_drake.episode_setup import EpisodeSetup
+        from bicoord_drake.models.layout import default_embodiment
 
         register_envs()  # tasks registered by the user's code since the package import
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
-        if action_mode not in ACTION_SIZES:
+        if action_mode not in ACTION_MODES:
             raise ValueError(f"action_mode must be 'qpos' or 'endpose', got {action_mode!r}")
         if cameras is None:
             cameras = CAMERA_NAMES if render else ()
@@ -171,14 +174,18 @@ class BiCoordEnv(gymnasium.Env):
         self.cameras = cameras
         self.metadata = {**type(self).metadata, "render_fps": fps}
         self._first_seed = check_seed(EVAL_SEED_START if seed is None else seed)
+        setup = EpisodeSetup(
+            task=task,
+            seed=self._first_seed,
+            randomize=randomize,
+            split=split,  # type: ignore[arg-type]
+            embodiment=embodiment or default_embodiment(),
+            station=config,
+        )
         #: The project's environment this one wraps (privileged policies may ``bind`` to it).
         self.bicoord_env = Env(
-            get_task(task),
-            config,
-            seed=self._first_seed,
+            setup,
             action_mode=action_mode,  # type: ignore[arg-type]
-            split=split,  # type: ignore[arg-type]
-            randomize=randomize,
             step_limit=step_limit,
             data=data,
         )
@@ -201,9 +208,10 @@ class BiCoordEnv(gymnasium.Env):
             IMAGE_KEYS[cam]: spaces.Box(0, 255, (height, width, 3), np.uint8)
             for cam in self.cameras
         }
-        items[STATE_KEY] = spaces.Box(-inf, inf, (14,), np.float32)
+        state_size = self.bicoord_env.layout.state_size
+        items[STATE_KEY] = spaces.Box(-inf, inf, (state_size,), np.float32)
         items[ENDPOSE_KEY] = spaces.Box(
-            np.tile(pose_low, 2), -np.tile(pose_low, 2), (14,), np.float32
+            np.tile(pose_low, 2), -np.tile(pose_low, 2), (2 * len(pose_low),), np.float32
         )
         items[TASK_KEY] = spaces.Text(
             max(len(t) for t in texts), min_length=1, charset=frozenset(charset)
@@ -216,10 +224,12 @@ class BiCoordEnv(gymnasium.Env):
             low = np.array(side_low * 2, dtype=np.float32)
             high = np.array([np.inf] * 3 + [1.0] * 5, dtype=np.float32)
             return spaces.Box(low, np.tile(high, 2), dtype=np.float32)
-        arm = self.bicoord_env.sim.station.embodiment.arm
-        low = np.concatenate([arm.lower, [0.0]])
-        high = np.concatenate([arm.upper, [1.0]])
-        return spaces.Box(np.tile(low, 2).astype(np.float32), np.tile(high, 2).astype(np.float32))
+        from bicoord_drake.models.embodiment import SIDES
+
+        arm, layout = self.bicoord_env.sim.station.embodiment.arm, self.bicoord_env.layout
+        low = layout.compose(dict.fromkeys(SIDES, arm.lower), dict.fromkeys(SIDES, 0.0))
+        high = layout.compose(dict.fromkeys(SIDES, arm.upper), dict.fromkeys(SIDES, 1.0))
+        return spaces.Box(low.astype(np.float32), high.astype(np.float32))
 
     # ---------------------------------------------------------------- API
     @property

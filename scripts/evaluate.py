@@ -80,6 +80,12 @@ def main(argv: list[str] | None = None) -> int:
         help="instructions and textures of this split (default: unseen)",
     )
     parser.add_argument(
+        "--embodiment",
+        default="aloha_viperx",
+        help="the robot (default: aloha_viperx; with --data the demonstrations' robot; a wrong "
+        "name lists them)",
+    )
+    parser.add_argument(
         "--action-mode", default="qpos", choices=("qpos", "endpose"), help="what act() returns"
     )
     parser.add_argument("--fps", type=float, default=15.0, help="control rate (--data: the file's)")
@@ -130,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
             depth=args.depth,
             randomize=args.randomize,
             split=args.split,
+            embodiment=args.embodiment,
             action_mode=args.action_mode,
             fps=args.fps,
             step_limit=args.step_limit,

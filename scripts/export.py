@@ -7,8 +7,9 @@ Examples:
     python scripts/export.py data --to lerobot --out lr --dtype float64 --check
 
 DATA_DIR holds episode files (searched recursively for *.hdf5), e.g. the --out of
-scripts/generate.py. Features: observation.state and action (14 each), observation.endpose
-(both TCP poses), stage_index per frame, the three cameras as videos, the instruction as the task.
+scripts/generate.py, all of one robot. Features: observation.state and action (the robot's
+joints and openings: 14 each for the ViperX pair), observation.endpose (both TCP poses),
+stage_index per frame, the three cameras as videos, the instruction as the task.
 v3.0 is written by lerobot's LeRobotDataset; v2.1 in lerobot's v2.1 layout. Needs the [lerobot]
 extra (see the README). --check loads the result with LeRobotDataset (a v2.1 export after
 converting it with lerobot's converter in a temporary directory) and compares it with the source.

@@ -7,6 +7,7 @@ Examples:
     python scripts/generate.py --task jigsaw --resolution 640x480 --depth
     python scripts/generate.py --task jigsaw --no-render           # states and actions only
     python scripts/generate.py --task jigsaw --randomize       # into <out>/jigsaw/randomized
+    python scripts/generate.py --task jigsaw --embodiment NAME    # another robot: <out>/jigsaw/NAME
     python scripts/generate.py --task all --episodes 50 --workers 2  # every task, 2 processes
     python scripts/generate.py --task jigsaw,cook --backend ray      # a local Ray instance
     python scripts/generate.py --task all --backend ray --ray-address auto   # join a cluster
@@ -68,9 +69,14 @@ def main(argv: list[str] | None = None) -> int:
         "distractor objects",
     )
     parser.add_argument(
+        "--embodiment",
+        default="aloha_viperx",
+        help="the robot (default: aloha_viperx, two ViperX 300s arms; a wrong name lists them)",
+    )
+    parser.add_argument(
         "--config-name",
-        help="name of the settings directory under <out>/<task>/ "
-        "(default: default, or randomized with --randomize)",
+        help="name of the settings directory under <out>/<task>/ (default: default, or "
+        "randomized with --randomize; for another robot its name, or NAME_randomized)",
     )
     parser.add_argument(
         "--max-tries",
@@ -97,6 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     from bicoord_drake.runner.generate import (
         GenerateConfig,
         RunProgress,
+        default_config_name,
         format_counts,
         format_failure,
         generate_dataset,
@@ -123,7 +130,8 @@ def main(argv: list[str] | None = None) -> int:
             depth=args.depth,
             render=not args.no_render,
             randomize=args.randomize,
-            config_name=args.config_name or ("randomized" if args.randomize else "default"),
+            embodiment=args.embodiment,
+            config_name=args.config_name or default_config_name(args.randomize, args.embodiment),
             max_tries=args.max_tries,
             workers=args.workers,
             backend=args.backend,

@@ -44,6 +44,7 @@ def test_import_registers_without_drake():
 
 def test_keys_are_the_lerobot_export_features():
     from bicoord_drake.data.export import CAMERAS, lerobot_features
+    from bicoord_drake.models.layout import layout_of
     from bicoord_drake.policies.lerobot_policy import IMAGE_FEATURES
 
     assert IMAGE_KEYS == CAMERAS == IMAGE_FEATURES
@@ -60,7 +61,8 @@ def test_keys_are_the_lerobot_export_features():
     env = object.__new__(BiCoordEnv)
     env.cameras = tuple(CAMERAS)
     env.bicoord_env = SimpleNamespace(
-        task=SimpleNamespace(instructions=lambda split: ("Fill the grid.",))
+        task=SimpleNamespace(instructions=lambda split: ("Fill the grid.",)),
+        layout=layout_of("aloha_viperx"),
     )
     space = env._observation_space(32, 24)
     observed = set(space.spaces) - {"task"}

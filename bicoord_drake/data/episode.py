@@ -15,10 +15,11 @@ Inside an episode file (T frames, S stages; PRODUCT.md, Data)::
     observation/<cam>/depth          (T, H, W) uint16, mm (optional)
     observation/<cam>/intrinsic_cv   (T, 3, 3)
     observation/<cam>/extrinsic_cv   (T, 3, 4)    world -> camera, OpenCV
-    joint_action/{left,right}_arm    (T, 6)
+    joint_action/{left,right}_arm    (T, n)       n arm joints (6 for the ViperX pair)
     joint_action/{left,right}_gripper (T,)        commanded opening, 1 = open
-    joint_action/vector              (T, 14)      [left 6, left grip, right 6, right grip]
-    joint_state/vector               (T, 14)      measured, same layout
+    joint_action/vector              (T, A)       [left n, left grip, right n, right grip]
+                                                  (A = 2 (n + 1): 14 for the ViperX pair)
+    joint_state/vector               (T, A)       measured, same layout
     endpose/{left,right}_endpose     (T, 7)       TCP xyz + quaternion wxyz, world
     objects/<name>/pose              (T, 7)
     joints/<name>/position           (T,)         a sliding object's joint position, m
@@ -27,12 +28,14 @@ Inside an episode file (T frames, S stages; PRODUCT.md, Data)::
     stages/score                     (S,) float64
     stages/{subgoal,left,right}      (S,) str
     stages/initial_state             (S, n)       plant [q; v] at each stage's start frame
-    stages/initial_action            (S, 14)      action in effect before that frame
+    stages/initial_action            (S, A)       action in effect before that frame
     stage_index                      (T,) int64
     attrs: schema_version, task, seed, instruction, fps, embodiment, success, object_count,
            package_version, config (JSON), scene (JSON), frame_count
 
-Frame ``t`` holds the observation *before* action ``t`` and action ``t`` itself. Every file is
+The vector layout is the embodiment's (:class:`~bicoord_drake.models.layout.ActionLayout`;
+:attr:`Episode.layout` from the ``embodiment`` attribute). Frame ``t`` holds the observation
+*before* action ``t`` and action ``t`` itself. Every file is
 written atomically: a temporary file in the same directory, then ``os.replace``; nothing partial
 ever appears under the final name. The recorder knows nothing about the task it records.
 """
@@ -57,6 +60,8 @@ from PIL import Image
 from pydantic import BaseModel, ConfigDict, Field
 
 from bicoord_drake.data.stage_rows import check_rows, stage_index_from_rows
+from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.models.layout import ActionLayout, default_embodiment, layout_of
 from bicoord_drake.models.scene import Scene
 
 if TYPE_CHECKING:
@@ -66,8 +71,6 @@ if TYPE_CHECKING:
 SCHEMA_VERSION = 1
 """Version of the episode-file schema written here; bump it on any incompatible change."""
 
-SIDES = ("left", "right")
-ACTION_SIZE = 14
 _STR = h5py.string_dtype()
 
 
@@ -237,22 +240,30 @@ class EpisodeRecorder:
 
     Typical loop (the runner's)::
 
-        recorder = EpisodeRecorder(fps=15, initial_action=reset_action)
+        recorder = EpisodeRecorder(fps=15, initial_action=reset_action, layout=station.layout)
         for action in expert:
             recorder.capture(sim, action)      # observation before the action, and the action
             sim.step(action)
         recorder.write(path, monitor.annotations(len(recorder)), meta)
+
+    `layout` is the robot's action layout (default: the default embodiment's).
     """
 
     def __init__(
-        self, fps: float, jpeg_quality: int = 90, initial_action: np.ndarray | None = None
+        self,
+        fps: float,
+        jpeg_quality: int = 90,
+        initial_action: np.ndarray | None = None,
+        layout: ActionLayout | None = None,
     ) -> None:
         if fps <= 0:
             raise ValueError(f"fps must be positive, got {fps}")
         self.fps = float(fps)
         self.jpeg_quality = int(jpeg_quality)
+        self.layout = layout or layout_of(default_embodiment())
+        self._size = (self.layout.action_size,)
         self.initial_action = (
-            None if initial_action is None else _vec(initial_action, (ACTION_SIZE,), "action")
+            None if initial_action is None else _vec(initial_action, self._size, "action")
         )
         self._rgb: dict[str, list[bytes]] = {}
         self._depth: dict[str, list[np.ndarray]] = {}
@@ -274,12 +285,12 @@ class EpisodeRecorder:
 
     @property
     def actions(self) -> np.ndarray:
-        """The recorded actions, (T, 14) float64 (a copy)."""
-        return np.array(self._action, dtype=np.float64).reshape(len(self), ACTION_SIZE)
+        """The recorded actions, (T, A) float64 (a copy)."""
+        return np.array(self._action, dtype=np.float64).reshape(len(self), self.layout.action_size)
 
     @property
     def joint_states(self) -> np.ndarray:
-        """The measured joint states, (T, 14) float64 (a copy)."""
+        """The measured joint states, (T, A) float64 (a copy)."""
         return np.array(self._joint_state, dtype=np.float64).reshape(len(self), -1)
 
     def add_frame(
@@ -316,8 +327,8 @@ class EpisodeRecorder:
             if cam not in intrinsic_cv or cam not in extrinsic_cv:
                 raise ValueError(f"camera {cam!r}: image given without intrinsic_cv/extrinsic_cv")
         frame = {
-            "action": _vec(action, (ACTION_SIZE,), "action"),
-            "joint_state": _vec(joint_state, (ACTION_SIZE,), "joint_state"),
+            "action": _vec(action, self._size, "action"),
+            "joint_state": _vec(joint_state, self._size, "joint_state"),
             "left": _vec(left_endpose, (7,), "left_endpose"),
             "right": _vec(right_endpose, (7,), "right_endpose"),
             "objects": {n: _vec(p, (7,), f"pose of {n!r}") for n, p in object_poses.items()},
@@ -350,6 +361,11 @@ class EpisodeRecorder:
 
     def capture(self, sim: Simulation, action: np.ndarray, depth: bool = False) -> None:
         """Record the simulation's current observation (call before ``sim.step(action)``)."""
+        if sim.station.layout.arm_joints != self.layout.arm_joints:
+            raise ValueError(
+                f"this recorder's layout is {self.layout.describe()}, the robot's "
+                f"{sim.station.layout.describe()}: make it with layout=station.layout"
+            )
         rendered = sim.images(depth=depth) if sim.station.cameras else {}
         cams = list(sim.station.cameras)
         self.add_frame(
@@ -467,12 +483,11 @@ class EpisodeRecorder:
                 )
 
     def _write_robot(self, f: h5py.File) -> None:
-        action = np.stack(self._action)
+        action, layout = np.stack(self._action), self.layout
         f["joint_action/vector"] = action
-        f["joint_action/left_arm"] = action[:, 0:6]
-        f["joint_action/left_gripper"] = action[:, 6]
-        f["joint_action/right_arm"] = action[:, 7:13]
-        f["joint_action/right_gripper"] = action[:, 13]
+        for side in SIDES:
+            f[f"joint_action/{side}_arm"] = action[:, layout.arm(side)]
+            f[f"joint_action/{side}_gripper"] = action[:, layout.gripper(side)]
         f["joint_state/vector"] = np.stack(self._joint_state)
         for side in SIDES:
             f[f"endpose/{side}_endpose"] = np.stack(self._endpose[side])
@@ -545,6 +560,16 @@ class Episode:
     @property
     def instruction(self) -> str:
         return self.attrs["instruction"]
+
+    @property
+    def embodiment(self) -> str:
+        return self.attrs["embodiment"]
+
+    @property
+    def layout(self) -> ActionLayout:
+        """The action / joint-state layout of the recording robot (a ValueError naming the
+        registered embodiments if it is not one of them)."""
+        return layout_of(self.embodiment)
 
     @property
     def config(self) -> dict[str, Any]:

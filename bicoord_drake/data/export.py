@@ -6,11 +6,12 @@ here directly in the v2.1 layout, with lerobot's video encoder and episode stati
 0.4 has no writer for it, only a converter from v2.1 to v3.0, which the tests run on our v2.1
 output to check it.
 
-Features of every frame ``t`` (14 numbers are ``[left 6 joints, left gripper, right 6 joints,
-right gripper]``, as in the episode file)::
+Features of every frame ``t`` (A numbers are ``[left n joints, left gripper, right n joints,
+right gripper]``, the recording robot's layout as in the episode file: A = 14 for the ViperX
+pair; the dataset's ``robot_type`` is the embodiment)::
 
-    observation.state          (14,)  measured joint state
-    action                     (14,)  commanded joint targets and gripper openings
+    observation.state          (A,)   measured joint state
+    action                     (A,)   commanded joint targets and gripper openings
     observation.endpose        (14,)  left TCP xyz + quaternion wxyz, then right
     stage_index                (1,)   int64, the BiCoord stage the frame belongs to
     observation.images.{head,left,right}   videos (H, W, 3)
@@ -35,8 +36,10 @@ from typing import Any
 
 import numpy as np
 
-from bicoord_drake.data.episode import SIDES, Episode, read_episode
+from bicoord_drake.data.episode import Episode, read_episode
 from bicoord_drake.data.readers import find_episode_files
+from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.models.layout import POSE_SIZE, layout_of
 
 CODEBASES = ("v3.0", "v2.1")
 DTYPES = ("float32", "float64")
@@ -127,24 +130,23 @@ class ExportResult:
 
 
 # --------------------------------------------------------------------------- features
-def _joint_names(episode: Episode) -> list[str]:
-    from bicoord_drake.models.embodiment import get_embodiment
-
-    joints = get_embodiment(episode.attrs["embodiment"]).arm.joint_names
-    return [f"{side}_{name}" for side in SIDES for name in [*joints, "gripper"]]
-
-
 def lerobot_features(episode: Episode, dtype: str = "float32") -> dict[str, dict[str, Any]]:
-    """The LeRobot feature dictionary for episodes shaped like ``episode``."""
+    """The LeRobot feature dictionary for episodes shaped like ``episode`` (its robot's action
+    layout, its cameras and image size)."""
     if dtype not in DTYPES:
         raise ValueError(f"unknown dtype {dtype!r}; choose one of {', '.join(DTYPES)}")
+    layout = layout_of(episode.attrs["embodiment"])  # as Episode.layout
+
+    def joints() -> dict[str, Any]:
+        return {"dtype": dtype, "shape": (layout.action_size,), "names": layout.feature_names()}
+
     pose = ["x", "y", "z", "qw", "qx", "qy", "qz"]
     features: dict[str, dict[str, Any]] = {
-        "observation.state": {"dtype": dtype, "shape": (14,), "names": _joint_names(episode)},
-        "action": {"dtype": dtype, "shape": (14,), "names": _joint_names(episode)},
+        "observation.state": joints(),
+        "action": joints(),
         "observation.endpose": {
             "dtype": dtype,
-            "shape": (14,),
+            "shape": (len(SIDES) * POSE_SIZE,),
             "names": [f"{side}_{p}" for side in SIDES for p in pose],
         },
         "stage_index": {"dtype": "int64", "shape": (1,), "names": None},

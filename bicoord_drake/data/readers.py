@@ -43,6 +43,9 @@ FORMATS = ("auto", *LAYOUTS)
 SCHEMA_MAJOR = 1
 """Major schema version of our episode files this reader understands."""
 
+#: Width of a BiCoord-release ``endpose`` row: per arm xyz, rpy and the gripper (that dataset's
+#: fixed format, whatever the robot).
+_BICOORD_ENDPOSE_WIDTH = 14
 _LEFT_POSE, _RIGHT_POSE = "endpose/left_endpose", "endpose/right_endpose"
 _LEFT_GRIP, _RIGHT_GRIP = "joint_action/left_gripper", "joint_action/right_gripper"
 
@@ -119,7 +122,11 @@ def _detect(f: h5py.File, path: Path) -> str:
     if _LEFT_POSE in f and _LEFT_GRIP in f:
         return "robotwin"
     endpose = f.get("endpose")
-    if isinstance(endpose, h5py.Dataset) and endpose.ndim == 2 and endpose.shape[1] == 14:
+    if (
+        isinstance(endpose, h5py.Dataset)
+        and endpose.ndim == 2
+        and endpose.shape[1] == _BICOORD_ENDPOSE_WIDTH
+    ):
         return "bicoord"
     raise ValueError(
         f"{path}: unknown layout: expected '{_LEFT_POSE}' with root attribute 'task' "
@@ -212,7 +219,7 @@ def _read_robotwin(f: h5py.File, path: Path) -> dict:
 
 
 def _read_bicoord(f: h5py.File, path: Path) -> dict:
-    endpose = _matrix(f, "endpose", 14, path)
+    endpose = _matrix(f, "endpose", _BICOORD_ENDPOSE_WIDTH, path)
     return {
         "left_xyz": endpose[:, 0:3],
         "right_xyz": endpose[:, 7:10],

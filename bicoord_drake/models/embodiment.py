@@ -1,13 +1,19 @@
 """Arm + gripper descriptions (pydantic) and their SDFormat generator.
 
-An :class:`Embodiment` is pure data: one :class:`ArmSpec` (links, six revolute joints, a parallel
-gripper), the two base poses, the home configuration and control limits. :func:`arm_sdf` turns it
-into an SDFormat model string; the station parses one model per side (``left_arm``,
-``right_arm``). A second robot is a second ``Embodiment`` value registered in
-:data:`EMBODIMENTS`; nothing else needs to change.
+An :class:`Embodiment` is pure data: one :class:`ArmSpec` (links, a chain of revolute joints - six
+for the ViperX, seven for the Panda - and a parallel gripper), the two base poses, the home
+configuration and control limits. :func:`arm_sdf` turns it into an SDFormat model string; the
+station parses one model per side (``left_arm``, ``right_arm``). A second robot is a second
+``Embodiment`` value registered in :data:`EMBODIMENTS`; nothing else needs to change.
 
 The default, :func:`aloha_viperx`, is two ViperX 300s arms (the ALOHA / AgileX layout) with the
 public ViperX 300s kinematics, limits and link inertias, side by side behind the table facing +y.
+:func:`bicoord_drake.models.franka.franka_pair` is two 7-DoF Franka Emika Panda arms with the
+Franka Hand.
+
+Gripper frame convention (every embodiment): the gripper link's x axis points along the fingers
+(the approach direction), the fingers move along its y axis, and the ``tcp`` frame - midway
+between the fingertip pads - has the gripper link's orientation.
 
 Gripper convention: each finger joint's position is the distance from the gripper's midplane to
 that finger's inner pad surface, so the jaw gap is twice the finger position. A gripper opening
@@ -60,6 +66,9 @@ class LinkSpec(BaseModel):
     mass: float = Field(gt=0)
     com: Vec3 = (0.0, 0.0, 0.0)
     inertia_diag: Vec3
+    inertia_offdiag: Vec3 | None = Field(
+        None, description="products of inertia (ixy, ixz, iyz) about the COM; None = principal"
+    )
     collision: tuple[Primitive, ...] = ()
     visual: tuple[Primitive, ...] = ()
     color: Rgba = (0.15, 0.15, 0.17, 1.0)
@@ -98,7 +107,7 @@ class GripperSpec(BaseModel):
     model_config = ConfigDict(frozen=True)
 
     finger_origin_x: float = Field(description="finger joint origin along the mount link x")
-    finger_min: float = Field(gt=0, description="finger position when closed (half jaw gap), m")
+    finger_min: float = Field(ge=0, description="finger position when closed (half jaw gap), m")
     finger_max: float = Field(gt=0, description="finger position when open (half jaw gap), m")
     force_limit: float = Field(gt=0, description="closing force limit of the actuated finger, N")
     finger_kp: float = Field(gt=0)
@@ -137,7 +146,8 @@ class GripperSpec(BaseModel):
 
 
 class ArmSpec(BaseModel):
-    """A serial arm: base link, links, six revolute joints in order, and a gripper on the last."""
+    """A serial arm: base link, links, its revolute joints in order (any number), and a gripper
+    on the last link."""
 
     model_config = ConfigDict(frozen=True)
 
@@ -179,7 +189,10 @@ class Embodiment(BaseModel):
     arm: ArmSpec
     left_base: Pose
     right_base: Pose
-    home: tuple[float, ...] = Field(description="home joint angles of one arm (mirrored per side)")
+    home: tuple[float, ...] = Field(
+        description="home joint angles of one arm; both arms use the same angles (their bases "
+        "face the same way, so a home in the arm's own vertical plane is mirror-symmetric)"
+    )
     home_opening: float = Field(1.0, ge=0, le=1)
 
     @model_validator(mode="after")
@@ -199,7 +212,8 @@ class Embodiment(BaseModel):
         return self.left_base if side == "left" else self.right_base
 
     def home_action(self) -> np.ndarray:
-        """The 14-dim action holding both arms at home with open grippers."""
+        """The action ``[left q, left opening, right q, right opening]`` (2 (n + 1) numbers for
+        n arm joints: 14 for the ViperX pair) holding both arms at home."""
         q = list(self.home) + [self.home_opening]
         return np.array(q + q, dtype=float)
 
@@ -265,11 +279,7 @@ def _make_arm_sdf(embodiment: Embodiment, model_name: str) -> str:
 
 
 def _link_sdf(link: LinkSpec, mesh_prefix: str, pose: str) -> str:
-    parts = [
-        f'<link name="{link.name}">',
-        pose,
-        sdf_inertial(link.mass, link.com, link.inertia_diag),
-    ]
+    parts = [f'<link name="{link.name}">', pose, _link_inertial(link)]
     for i, prim in enumerate(link.collision):
         parts.append(sdf_collision(f"{link.name}_collision_{i}", prim, ContactProps(friction=0.8)))
     if link.visual:
@@ -279,6 +289,17 @@ def _link_sdf(link: LinkSpec, mesh_prefix: str, pose: str) -> str:
         )
     parts.append("</link>")
     return "".join(parts)
+
+
+def _link_inertial(link: LinkSpec) -> str:
+    if link.inertia_offdiag is None:
+        return sdf_inertial(link.mass, link.com, link.inertia_diag)
+    (ixx, iyy, izz), (ixy, ixz, iyz) = link.inertia_diag, link.inertia_offdiag
+    return (
+        f"<inertial>{Pose(xyz=link.com).sdf()}<mass>{link.mass:.6g}</mass><inertia>"
+        f"<ixx>{ixx:.6g}</ixx><iyy>{iyy:.6g}</iyy><izz>{izz:.6g}</izz>"
+        f"<ixy>{ixy:.6g}</ixy><ixz>{ixz:.6g}</ixz><iyz>{iyz:.6g}</iyz></inertia></inertial>"
+    )
 
 
 def _finger_sdf(prefix: str, mount: str, g: GripperSpec, sign: int) -> str:
@@ -598,16 +619,3 @@ def aloha_viperx() -> Embodiment:
         right_base=Pose(xyz=(0.25, -0.42, 0.75), rpy=(0, 0, half_pi)),
         home=(0.0, -0.96, 1.16, 0.0, 0.4, 0.0),
     )
-
-
-EMBODIMENTS = {"aloha_viperx": aloha_viperx}
-
-
-def get_embodiment(name: str) -> Embodiment:
-    """The registered embodiment called `name`; a clear error lists the valid names."""
-    try:
-        return EMBODIMENTS[name]()
-    except KeyError:
-        raise ValueError(
-            f"unknown embodiment {name!r}; choose one of: {', '.join(sorted(EMBODIMENTS))}"
-        ) from None

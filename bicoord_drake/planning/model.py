@@ -61,9 +61,10 @@ from pydrake.all import (
     Sphere,
 )
 
-from bicoord_drake.models.embodiment import SIDES, Embodiment, get_embodiment
+from bicoord_drake.models.embodiment import SIDES, Embodiment
 from bicoord_drake.models.geometry import Primitive
 from bicoord_drake.models.objects import SceneObject, object_sdf
+from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.models.table import table_sdf
 from bicoord_drake.planning.errors import PlanningError

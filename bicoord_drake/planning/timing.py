@@ -22,8 +22,9 @@ Key functions:
   uniformly slowed (time-scaled, which keeps its path and only lowers velocity, acceleration and
   jerk) so both arrive at the same control step, optionally at a requested time.
 - Throws and catches are timed on the same grid in :mod:`bicoord_drake.planning.throwing`.
-- :meth:`TimedTrajectory.to_actions` turns a 12-DoF trajectory plus gripper schedules into the
-  (N, 14) action array ``[left 6, left opening, right 6, right opening]``.
+- :meth:`TimedTrajectory.to_actions` turns a two-arm trajectory plus gripper schedules into the
+  station's (N, 2 (n + 1)) action array ``[left n, left opening, right n, right opening]``
+  (:class:`~bicoord_drake.models.layout.ActionLayout`; (N, 14) for two 6-joint arms).
 
 Joint vectors are ``[left 6, right 6]`` for two arms; every function also works for one arm
 (n = 6) with matching :class:`JointLimits`.
@@ -44,6 +45,7 @@ from ruckig import (
 )
 
 from bicoord_drake.models.embodiment import Embodiment, GripperSpec, Side
+from bicoord_drake.models.layout import ActionLayout
 from bicoord_drake.planning.errors import PlanningError
 
 #: Default control period (15 Hz).
@@ -381,16 +383,18 @@ class TimedTrajectory:
             raise PlanningError("timing_limits", f"limits broken at a sample: {r}")
 
     def to_actions(self, left_opening: Opening = 1.0, right_opening: Opening = 1.0) -> np.ndarray:
-        """(N, 14) actions ``[left 6, left opening, right 6, right opening]`` of a 12-DoF
-        trajectory. An opening is a constant, an (N,) array or a callable ``times -> (N,)``."""
-        if self.n != 12:
-            raise ValueError(f"to_actions needs a 12-DoF trajectory, this one has {self.n} DoF")
-        n = len(self.q)
-        out = np.empty((n, 14))
-        out[:, 0:6], out[:, 7:13] = self.q[:, 0:6], self.q[:, 6:12]
-        out[:, 6] = _opening_array(left_opening, self.times)
-        out[:, 13] = _opening_array(right_opening, self.times)
-        return out
+        """(N, 2 (n + 1)) actions ``[left n, left opening, right n, right opening]`` of a
+        two-arm trajectory ``[left n, right n]``. An opening is a constant, an (N,) array or a
+        callable ``times -> (N,)``."""
+        if self.n % 2:
+            raise ValueError(f"to_actions needs a two-arm trajectory, this one has {self.n} DoF")
+        layout = ActionLayout(self.n // 2)
+        left, right = self.q[:, : layout.arm_joints], self.q[:, layout.arm_joints :]
+        openings = {
+            "left": _opening_array(left_opening, self.times),
+            "right": _opening_array(right_opening, self.times),
+        }
+        return layout.compose({"left": left, "right": right}, openings)
 
 
 class _Select(_Timeline):

@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from bicoord_drake.models.embodiment import SIDES
+
 if TYPE_CHECKING:
     from bicoord_drake.env import Env
 
@@ -28,7 +30,7 @@ class ReplayPolicy:
     """
 
     def __init__(self) -> None:
-        self._actions = np.zeros((0, 14))
+        self._actions = np.zeros((0, 0))  # the demonstration's, from bind()
         self._t = 0
 
     def bind(self, env: Env) -> None:
@@ -97,8 +99,10 @@ class NoopPolicy:
         if env.action_mode == "qpos":
             self._bound = np.asarray(env.action, dtype=float)
         else:  # endpose: the current TCP poses with the commanded openings
-            a, tcp = env.action, env.sim.tcp_pose
-            self._bound = np.concatenate([tcp("left"), [a[6]], tcp("right"), [a[13]]])
+            a, layout = env.action, env.layout
+            self._bound = np.concatenate(
+                [np.r_[env.sim.tcp_pose(side), a[layout.gripper(side)]] for side in SIDES]
+            )
 
     def reset(self, instruction: str) -> None:
         self._hold, self._bound = self._bound, None

@@ -10,7 +10,8 @@ own ``PreTrainedConfig.from_pretrained``, ``get_policy_class(type).from_pretrain
 pipelines: normalization statistics, tokenizer, device).
 
 Each step the policy gets, under the names of the LeRobot export (:mod:`bicoord_drake.data.export`)
-and only the features it was trained with: ``observation.state`` (14 measured joints),
+and only the features it was trained with: ``observation.state`` (the measured joints, as many
+as the robot's layout has: 14 for the ViperX pair),
 ``observation.endpose`` (both TCP poses), ``observation.images.{head,left,right}`` as float CHW
 tensors in [0, 1], resized (bilinear, antialiased) to the size in its config, and the
 instruction as ``task``. Its ``select_action`` runs its action queue (chunks, temporal
@@ -18,9 +19,10 @@ ensembling) and ``reset`` empties it at the start of every rollout. Observations
 :mod:`bicoord_drake.env` and of the Gymnasium environment (:mod:`bicoord_drake.gym_env`, already
 keyed by those names) are both accepted.
 
-A checkpoint whose inputs the benchmark cannot provide is refused at load time, naming what is
-missing and what the environment offers; one that needs a camera the environment does not
-render (``--no-render``) fails its first action the same way.
+A checkpoint whose inputs the benchmark cannot provide (for any of its robots) is refused at
+load time, naming what is missing and what the environment offers; one that needs a camera the
+environment does not render (``--no-render``), or a state of another robot's size, fails its
+first action the same way.
 
 torch and lerobot are imported only here, when such a policy is loaded; without them (or
 without what lerobot's policy modules import) loading says how to install them:
@@ -37,6 +39,9 @@ from typing import Any
 
 import numpy as np
 
+from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.models.layout import POSE_SIZE, layout_of
+from bicoord_drake.models.robots import EMBODIMENTS
 from bicoord_drake.policies import PolicyLoadError
 
 PREFIX = "lerobot:"
@@ -46,19 +51,36 @@ LEROBOT_PIN = "lerobot==0.4.4"
 INSTALL_HINT = f"pip install -e '.[train]' && pip install --no-deps {LEROBOT_PIN}"
 STATE = "observation.state"
 ENDPOSE = "observation.endpose"
+#: Both TCP poses (xyz + wxyz), whatever the robot.
+ENDPOSE_SHAPE = (len(SIDES) * POSE_SIZE,)
 #: Our camera names and the LeRobot image features they feed (as in the export).
 IMAGE_FEATURES = {
     "head_camera": "observation.images.head",
     "left_camera": "observation.images.left",
     "right_camera": "observation.images.right",
 }
-#: Every input a BiCoord environment can provide, with its shape (images: 3 channels, any size).
+#: Every input a BiCoord environment can provide, with its shape (images: 3 channels, any size;
+#: the state: see :func:`state_shapes`).
 OFFERED = {
-    STATE: "(14,)",
-    ENDPOSE: "(14,)",
+    STATE: "(A,)",
+    ENDPOSE: str(ENDPOSE_SHAPE),
     **{key: "(3, H, W)" for key in IMAGE_FEATURES.values()},
 }
 _CHECKPOINT_FILES = ("config.json", "model.safetensors")
+
+
+def state_shapes() -> dict[tuple[int], list[str]]:
+    """Each ``observation.state`` shape a registered robot gives -> the robots giving it."""
+    shapes: dict[tuple[int], list[str]] = {}
+    for name in EMBODIMENTS:
+        shapes.setdefault((layout_of(name).state_size,), []).append(name)
+    return shapes
+
+
+def _offered() -> dict[str, str]:
+    """:data:`OFFERED` with the state shapes of the registered robots."""
+    states = " or ".join(f"{s} ({', '.join(n)})" for s, n in state_shapes().items())
+    return {**OFFERED, STATE: states}
 
 
 def find_checkpoint(path: str | Path) -> Path:
@@ -141,15 +163,18 @@ def check_features(config: Any, where: str = "this checkpoint") -> None:
     """PolicyLoadError unless a BiCoord environment can provide every input of `config`."""
     problems = []
     missing = []
+    offered_shapes = _offered()
     for key, (_, shape) in _required_inputs(config).items():
         if key not in OFFERED:
             missing.append(f"{key} {shape}")
-        elif key in (STATE, ENDPOSE) and shape != (14,):
-            problems.append(f"{key} has shape {shape}, the environment's is (14,)")
+        elif key == STATE and shape not in state_shapes():
+            problems.append(f"{key} has shape {shape}, the environment's is {offered_shapes[key]}")
+        elif key == ENDPOSE and shape != ENDPOSE_SHAPE:
+            problems.append(f"{key} has shape {shape}, the environment's is {OFFERED[key]}")
         elif key in IMAGE_FEATURES.values() and (len(shape) != 3 or shape[0] != 3):
             problems.append(f"{key} has shape {shape}, expected (3, H, W) RGB")
     if missing or problems:
-        offered = ", ".join(f"{k} {s}" for k, s in OFFERED.items())
+        offered = ", ".join(f"{k} {s}" for k, s in offered_shapes.items())
         text = []
         if missing:
             text.append(f"it needs {', '.join(missing)}, which the environment does not provide")
@@ -272,9 +297,13 @@ class LeRobotPolicy:
             if kind == "VISUAL":
                 batch[key] = _image_tensor(value, shape, torch)
             else:
-                batch[key] = torch.as_tensor(
-                    np.asarray(value, dtype=np.float32).reshape(1, -1).copy()
-                )
+                vector = np.asarray(value, dtype=np.float32).reshape(1, -1)
+                if vector.shape[1] != int(np.prod(shape)):
+                    raise ValueError(
+                        f"lerobot policy {self.path}: {key} has {vector.shape[1]} numbers, the "
+                        f"policy takes {shape} (trained on another robot?)"
+                    )
+                batch[key] = torch.as_tensor(vector.copy())
         task = obs.get("instruction", obs.get("task", self.instruction))
         batch["task"] = [str(task)]
         return batch

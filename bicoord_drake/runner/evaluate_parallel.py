@@ -63,6 +63,7 @@ _ENV_FIELDS = {
     "step_limit",
     "randomize",
     "split",
+    "embodiment",
 }
 """The settings a worker's environment and policy are built with: another value builds anew."""
 
@@ -75,9 +76,7 @@ def rollout_job(
     task = get_task(config.task)
     outcome = RolloutOutcome(seed)
     if check:
-        outcome.verdict = expert_verdict(
-            task, seed, config.fps, randomize=config.randomize, split=config.split
-        )
+        outcome.verdict = expert_verdict(config.episode_setup(task, seed))
         if not outcome.verdict["ok"]:
             return outcome
     fps = episode.fps if episode is not None else config.fps
@@ -183,7 +182,7 @@ def run_parallel(
     info = None
     if done:
         last = max(done)
-        scene = scenes.get(last) or task.sample_scene(done[last].seed)
+        scene = scenes.get(last) or config.episode_setup(task, done[last].seed).make_scene()
         info = SceneStages(scene, tuple(task.stages(scene)))
     return rollouts, [skipped[k] for k in sorted(skipped)], info
 

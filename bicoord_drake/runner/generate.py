@@ -1,9 +1,11 @@
 """Seeds -> verified expert demonstrations on disk.
 
 ``generate(GenerateConfig(task="jigsaw", episodes=3))`` tries seeds from ``seed`` upward until
-``episodes`` demonstrations succeed. For each seed it samples the task's scene, builds the
-station, runs the expert *in physics* through the station's action path with the stage monitor
-watching every control step, and keeps the episode only if every stage verified. Failures (a
+``episodes`` demonstrations succeed. For each seed it assembles the episode from the run's
+settings (:meth:`GenerateConfig.episode_setup`, :func:`bicoord_drake.episode_setup.assemble`:
+scene, station, monitor), runs the expert *in physics* through the station's action path with
+the stage monitor watching every control step, and keeps the episode only if every stage
+verified. Failures (a
 planning error, a stage that did not verify, the step limit) are recorded with their reason in
 ``manifest.json``, which is rewritten after every seed: an interrupted run resumes where it
 stopped, and no partial episode file ever appears (files are written to a temporary name and
@@ -59,20 +61,28 @@ from bicoord_drake.data.episode import (
     write_json,
     write_manifest,
 )
-from bicoord_drake.models.appearance import Split
+from bicoord_drake.episode_setup import EpisodeSetup, assemble
+from bicoord_drake.models.layout import check_embodiment, default_embodiment
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.runner.backends import WorkerLost, make_backend, quiet_worker
 from bicoord_drake.runner.stopwatch import Stopwatch
 from bicoord_drake.sim.frame_renderer import FrameRenderer
-from bicoord_drake.sim.simulation import Simulation
-from bicoord_drake.sim.station import build_station
-from bicoord_drake.stages import StageMonitor, WorldState
+from bicoord_drake.stages import WorldState
 from bicoord_drake.tasks import get_task
-from bicoord_drake.tasks.base import Task, WorldView
+from bicoord_drake.tasks.base import Task
 
 RUN_ONLY_FIELDS = {"workers", "backend", "ray_address", "shared_fs", "verbose"}
 """Settings of how a run executes, not of the data (left out of the episode files)."""
+
+
+def default_config_name(randomize: bool = False, embodiment: str | None = None) -> str:
+    """The settings directory under ``<out>/<task>/``: ``default`` or ``randomized`` for the
+    default robot, ``<embodiment>`` or ``<embodiment>_randomized`` for another one."""
+    name = embodiment or default_embodiment()
+    if name == default_embodiment():
+        return "randomized" if randomize else "default"
+    return f"{name}_randomized" if randomize else name
 
 
 class GenerateConfig(BaseModel):
@@ -91,7 +101,12 @@ class GenerateConfig(BaseModel):
     randomize: bool = Field(
         False, description="randomized textures, lights, table height, camera jitter, clutter"
     )
-    config_name: str = Field("default", pattern=r"^[A-Za-z0-9_.-]+$")
+    embodiment: str = Field(default_factory=default_embodiment, description="the robot")
+    config_name: str = Field(
+        None,  # type: ignore[assignment]  # filled in by _default_config_name
+        pattern=r"^[A-Za-z0-9_.-]+$",
+        description="settings directory (default: default, or the robot's name for another)",
+    )
     max_tries: int = Field(0, ge=0, description="give up after this many seeds (0: 5x episodes)")
     video: bool = True
     workers: int = Field(
@@ -105,6 +120,16 @@ class GenerateConfig(BaseModel):
     shared_fs: bool = Field(False, description="Ray workers write files to out themselves")
     verbose: bool = Field(False, description="workers' Drake and Ray logs on the terminal")
 
+    @model_validator(mode="before")
+    @classmethod
+    def _default_config_name(cls, data: Any) -> Any:
+        """No config name: ``default``, or the robot's name for another robot than the
+        default (scripts/generate.py also names randomized runs apart)."""
+        if isinstance(data, dict) and data.get("config_name") is None:
+            embodiment = data.get("embodiment")
+            return {**data, "config_name": default_config_name(False, embodiment)}
+        return data
+
     @field_validator("resolution")
     @classmethod
     def _resolution(cls, value: str) -> str:
@@ -115,6 +140,11 @@ class GenerateConfig(BaseModel):
     @classmethod
     def _seed(cls, value: int) -> int:
         return check_seed(value)
+
+    @field_validator("embodiment")
+    @classmethod
+    def _embodiment(cls, value: str) -> str:
+        return check_embodiment(value)
 
     @model_validator(mode="after")
     def _seeds_in_range(self) -> GenerateConfig:
@@ -131,18 +161,40 @@ class GenerateConfig(BaseModel):
     def station_config(self) -> StationConfig:
         width, height = parse_resolution(self.resolution)
         cameras = CameraConfig(width=width, height=height, depth=self.depth)
-        return StationConfig(control_rate=self.fps, render=self.render, cameras=cameras)
+        return StationConfig(
+            embodiment=self.embodiment, control_rate=self.fps, render=self.render, cameras=cameras
+        )
+
+    def episode_setup(self, seed: int) -> EpisodeSetup:
+        """The episode of `seed` of this run's (single) task: every setting of the data."""
+        return EpisodeSetup(
+            task=self.task,
+            seed=seed,
+            randomize=self.randomize,
+            split="seen",
+            embodiment=self.embodiment,
+            station=self.station_config(),
+        )
 
     def for_task(self, name: str) -> GenerateConfig:
         """This run's settings for one of its tasks."""
         return self.model_copy(update={"task": name})
 
     def data_settings(self) -> dict:
-        """The settings that shape the data: a resumed run must match them."""
-        settings = self.model_dump(include={"task", "resolution", "fps", "depth", "render"})
+        """The settings that shape the data: a resumed run must match them
+        (:func:`same_settings`)."""
+        settings = self.model_dump(
+            include={"task", "resolution", "fps", "depth", "render", "embodiment"}
+        )
         if self.randomize:  # absent when off: directories of earlier runs still resume
             settings["randomize"] = True
         return settings
+
+
+def same_settings(recorded: dict, settings: dict) -> bool:
+    """Whether data recorded with `recorded` settings continues with `settings` (a directory
+    written before the embodiment was recorded holds the default robot's data)."""
+    return {"embodiment": default_embodiment(), **recorded} == settings
 
 
 @dataclass
@@ -159,45 +211,38 @@ class EpisodeResult:
     timings: dict[str, float] = field(default_factory=dict)
 
 
-def run_expert(
-    task: Task,
-    seed: int,
-    station_config: StationConfig,
-    depth: bool = False,
-    randomize: bool = False,
-    split: Split = "seen",
-) -> EpisodeResult:
-    """Run `task`'s expert for `seed` in physics and verify every stage.
+def run_expert(setup: EpisodeSetup, depth: bool = False) -> EpisodeResult:
+    """Run the expert of `setup`'s episode in physics and verify every stage.
 
-    The episode runs on a station without cameras; only a verified episode is then rendered,
-    from its recorded plant states (:class:`~bicoord_drake.sim.frame_renderer.FrameRenderer`),
-    when `station_config` asks for cameras: a failed seed costs no rendering. The result's
+    The episode is assembled from `setup` (:func:`~bicoord_drake.episode_setup.assemble`:
+    task, seed, randomized scene of its split, robot, station settings) on a station without
+    cameras; only a verified episode is then rendered, from its recorded plant states
+    (:class:`~bicoord_drake.sim.frame_renderer.FrameRenderer`), when ``setup.station`` asks for
+    cameras (with `depth`, depth images too): a failed seed costs no rendering. The result's
     ``timings`` split the wall time into build, planning, physics, monitor, record, render and
-    jpeg seconds. With `randomize`, the scene gets its seed's randomized appearance from `split`
-    (:meth:`~bicoord_drake.models.scene.Scene.randomized`; generation uses the seen split, the
-    expert check of an evaluation its own).
+    jpeg seconds. Generation uses the seen split (:meth:`GenerateConfig.episode_setup`), the
+    expert check of an evaluation the setup of its rollouts.
 
     Any failure of the seed (planning, a stage not verified, an annotation that cannot be made)
-    is returned with its reason; a ValueError only for a seed outside [0, 2**32)."""
-    seed = check_seed(seed)
+    is returned with its reason."""
+    seed, station_config = setup.seed, setup.station
     clock = Stopwatch()
     with clock("build"):
-        scene = task.sample_scene(seed)
-        if randomize:
-            scene = scene.randomized(split)
-        sim = Simulation(build_station(scene, station_config.model_copy(update={"render": False})))
-        monitor = StageMonitor(task.stages(scene))
+        episode = assemble(setup.without_cameras())
+        task, scene, sim, monitor = episode.task, episode.scene, episode.sim, episode.monitor
         recorder = EpisodeRecorder(
-            fps=station_config.control_rate, initial_action=sim.station.embodiment.home_action()
+            fps=station_config.control_rate,
+            initial_action=episode.embodiment.home_action(),
+            layout=episode.layout,
         )
-        instruction = task.instruction(np.random.default_rng(seed), "seen")
-    action = sim.station.embodiment.home_action()
+        instruction = setup.instruction()
+    action = episode.embodiment.home_action()
 
     def failed(reason: str) -> EpisodeResult:
         return EpisodeResult(seed, False, reason, timings=clock.seconds())
 
     try:
-        expert = iter(task.expert(scene, WorldView(sim)))
+        expert = iter(task.expert(scene, episode.view))
         while True:
             with clock("planning"):
                 next_action = next(expert, None)
@@ -489,11 +534,8 @@ def produce_episode(config: GenerateConfig, seed: int, staging: str | None) -> S
     (a directory on a shared file system) and return their paths."""
     quiet_worker(config.verbose)
     task = get_task(config.task)
-    station_config = config.station_config()
     try:
-        result = run_expert(
-            task, seed, station_config, depth=config.depth, randomize=config.randomize
-        )
+        result = run_expert(config.episode_setup(seed), depth=config.depth)
     except Exception as exc:  # noqa: BLE001 - recorded in the manifest with the traceback's tail
         result = EpisodeResult(seed, False, f"crashed: {format_failure(exc)}")
     outcome = SeedOutcome(
@@ -510,28 +552,24 @@ def produce_episode(config: GenerateConfig, seed: int, staging: str | None) -> S
     outcome.frames = len(result.recorder)
     if staging is not None:
         layout = EpisodeLayout(Path(staging), f"seed{seed}", ".")
-        paths = _save(result, task, config, station_config, layout)
+        paths = _save(result, task, config, layout)
         outcome.staged = {kind: str(path) for kind, path in paths.items()}
     else:
         with tempfile.TemporaryDirectory(prefix="bicoord-episode-") as tmp:
-            paths = _save(result, task, config, station_config, EpisodeLayout(Path(tmp), "e", "."))
+            paths = _save(result, task, config, EpisodeLayout(Path(tmp), "e", "."))
             outcome.files = {kind: path.read_bytes() for kind, path in paths.items()}
     outcome.timings["encode"] = round(time.perf_counter() - t_encode, 3)
     return outcome
 
 
 def _save(
-    result: EpisodeResult,
-    task: Task,
-    config: GenerateConfig,
-    station_config: StationConfig,
-    layout: EpisodeLayout,
+    result: EpisodeResult, task: Task, config: GenerateConfig, layout: EpisodeLayout
 ) -> dict[str, Path]:
     meta = EpisodeMeta(
         task=task.name,
         seed=result.seed,
         instruction=result.instruction,
-        embodiment=station_config.embodiment,
+        embodiment=config.embodiment,
         success=True,
         object_count=task.object_count(result.scene),
         config=config.model_dump(exclude=RUN_ONLY_FIELDS),
@@ -657,7 +695,7 @@ class _DatasetManifest:
                 old = json.loads(self.path.read_text(encoding="utf-8"))
             except ValueError as exc:
                 raise ValueError(f"{self.path}: invalid dataset manifest ({exc})") from None
-            if old.get("settings") != self.settings:
+            if not same_settings(old.get("settings") or {}, self.settings):
                 raise ValueError(
                     f"{self.path} describes data generated with different settings "
                     f"{old.get('settings')}; use another --out or --config-name"
@@ -695,11 +733,12 @@ def _open_manifest(layout: EpisodeLayout, config: GenerateConfig) -> Manifest:
             task=config.task, config_name=config.config_name, config=config.data_settings()
         )
     manifest = read_manifest(layout.root)
-    if manifest.config != config.data_settings():
+    if not same_settings(manifest.config, config.data_settings()):
         raise ValueError(
             f"{layout.root} holds data generated with different settings {manifest.config}; "
             "use another --out or --config-name to generate with these settings"
         )
+    manifest.config = config.data_settings()  # an older manifest gets the robot's name
     # An episode whose file is missing (e.g. deleted) is forgotten so its seed can be redone;
     # so is a seed whose worker died (not the expert's verdict).
     manifest.episodes = [

@@ -23,7 +23,13 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from bicoord_drake.config import SEED_LIMIT, StationConfig, check_seed_range, parse_resolution
+from bicoord_drake.config import (
+    SEED_LIMIT,
+    CameraConfig,
+    StationConfig,
+    check_seed_range,
+    parse_resolution,
+)
 from bicoord_drake.data.episode import (
     Episode,
     decode_rgb,
@@ -32,8 +38,10 @@ from bicoord_drake.data.episode import (
     write_json,
     write_video,
 )
-from bicoord_drake.env import EVAL_SEED_START, Env, InvalidActionError, make_env
+from bicoord_drake.env import EVAL_SEED_START, Env, InvalidActionError
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.appearance import Split
+from bicoord_drake.models.layout import check_embodiment, default_embodiment
 from bicoord_drake.policies import bind_policy, reset_policy
 from bicoord_drake.runner import generate as generation
 from bicoord_drake.runner.backends import local_workers
@@ -69,6 +77,7 @@ class EvaluateConfig(BaseModel):
     split: Literal["seen", "unseen"] = Field(
         "unseen", description="instructions and (with randomize) textures of this split"
     )
+    embodiment: str = Field(default_factory=default_embodiment, description="the robot")
     action_mode: Literal["qpos", "endpose"] = "qpos"
     fps: float = Field(15.0, gt=0, le=100, description="control rate (data: from the files)")
     step_limit: int | None = Field(None, ge=1, description="override the task's step limit")
@@ -89,6 +98,11 @@ class EvaluateConfig(BaseModel):
     def _resolution(cls, value: str) -> str:
         parse_resolution(value)
         return value
+
+    @field_validator("embodiment")
+    @classmethod
+    def _embodiment(cls, value: str) -> str:
+        return check_embodiment(value)
 
     @model_validator(mode="after")
     def _consistent(self) -> EvaluateConfig:
@@ -121,6 +135,24 @@ class EvaluateConfig(BaseModel):
         """A file-name-safe name of the policy (and stage)."""
         name = re.sub(r"[^A-Za-z0-9_.-]+", "-", self.policy).strip("-")
         return name + (f"_stage{self.stage}" if self.stage is not None else "")
+
+    def episode_setup(self, task: Task | str, seed: int, fps: float | None = None) -> EpisodeSetup:
+        """The rollout episode of `seed` (at `fps`, default this config's control rate): the
+        scene, robot and station every rollout and every expert check of this evaluation get."""
+        width, height = parse_resolution(self.resolution)
+        station = StationConfig(
+            control_rate=self.fps if fps is None else fps,
+            render=self.render,
+            cameras=CameraConfig(width=width, height=height, depth=self.depth),
+        )
+        return EpisodeSetup(
+            task=task,
+            seed=seed,
+            randomize=self.randomize,
+            split=self.split,
+            embodiment=self.embodiment,
+            station=station,
+        )
 
 
 @dataclass
@@ -184,7 +216,7 @@ def rollout(
             obs, _ = env.step(action)
             left.append(tcp[0])
             right.append(tcp[1])
-            grippers.append(env.action[[6, 13]])
+            grippers.append(env.action[env.layout.gripper_indices])
             record(obs)
     except InvalidActionError as exc:
         error, tb = f"invalid action at step {env.steps}: {exc}", traceback.format_exc()
@@ -219,16 +251,9 @@ def rollout(
 
 def make_evaluation_env(task: Task, config: EvaluateConfig, seed: int, fps: float) -> Env:
     """The environment of an evaluation with `config`'s settings, built for `seed` at `fps`."""
-    return make_env(
-        task,
-        seed,
+    return Env(
+        config.episode_setup(task, seed, fps),
         action_mode=config.action_mode,
-        resolution=config.resolution,
-        depth=config.depth,
-        render=config.render,
-        fps=fps,
-        split=config.split,
-        randomize=config.randomize,
         step_limit=config.step_limit,
     )
 
@@ -255,27 +280,22 @@ def code_fingerprint() -> str:
 
 
 class ExpertCheck:
-    """Whether the expert solves (task, seed) in physics, cached in a small JSON file.
+    """Whether the expert solves a seed's episode in physics, cached in a small JSON file.
 
-    The check runs on the scene the rollouts get: with `randomize`, the seed's randomized scene
-    of `split` (its table height and clutter change what the expert must do). The key holds the
-    seed, the control rate, that scene (``randomized-<split>``, nothing for the plain scene), the
-    package version and :func:`code_fingerprint`, so an expert changed in any way (an edited
-    checkout included) is checked again.
+    `setup` is the evaluation's episode settings (:meth:`EvaluateConfig.episode_setup`; any
+    seed): the check of a seed runs on exactly the episode its rollout gets - with `randomize`,
+    the seed's randomized scene of `split` (its table height and clutter change what the expert
+    must do), on its robot and station. The key holds the seed, the control rate, that scene
+    (``randomized-<split>``, nothing for the plain scene), the robot and the station's other
+    settings (each only when not the default), the package version and
+    :func:`code_fingerprint`, so an expert changed in any way (an edited checkout included) is
+    checked again.
     """
 
-    def __init__(
-        self,
-        task: Task,
-        fps: float,
-        path: Path | None = None,
-        *,
-        randomize: bool = False,
-        split: Split = "unseen",
-    ) -> None:
-        self.task, self.fps = task, float(fps)
-        self.randomize, self.split = bool(randomize), split
-        self.path = path or cache_dir() / "expert_check" / f"{task.name}.json"
+    def __init__(self, setup: EpisodeSetup, path: Path | None = None) -> None:
+        self.setup = setup.without_cameras()
+        self.task = setup.get_task()
+        self.path = path or cache_dir() / "expert_check" / f"{self.task.name}.json"
         try:
             self._cache = json.loads(self.path.read_text(encoding="utf-8"))
         except (OSError, ValueError):
@@ -283,20 +303,34 @@ class ExpertCheck:
 
     @classmethod
     def for_config(cls, task: Task, config: EvaluateConfig) -> ExpertCheck:
-        """The check of an evaluation with `config` (its control rate and scenes)."""
-        return cls(task, config.fps, randomize=config.randomize, split=config.split)
+        """The check of an evaluation with `config` (its scenes, robot and control rate)."""
+        return cls(config.episode_setup(task, evaluation_seed(config.seed)))
+
+    @property
+    def fps(self) -> float:
+        return self.setup.station.control_rate
+
+    @property
+    def randomize(self) -> bool:
+        return self.setup.randomize
+
+    @property
+    def split(self) -> Split:
+        return self.setup.split
 
     def _key(self, seed: int) -> str:
-        scene = f"@randomized-{self.split}" if self.randomize else ""
-        return f"{seed}@{self.fps:g}Hz{scene}@{package_version()}+{code_fingerprint()}"
+        setup = self.setup
+        scene = f"@randomized-{setup.split}" if setup.randomize else ""
+        robot = "" if setup.embodiment == default_embodiment() else f"@{setup.embodiment}"
+        return (
+            f"{seed}@{self.fps:g}Hz{scene}{robot}{_station_key(setup.station)}"
+            f"@{package_version()}+{code_fingerprint()}"
+        )
 
     def __call__(self, seed: int) -> tuple[bool, str | None]:
         """(ok, reason) for `seed`, from the cache or by running the expert."""
         if self.lookup(seed) is None:
-            verdict = expert_verdict(
-                self.task, seed, self.fps, randomize=self.randomize, split=self.split
-            )
-            self.store(seed, verdict)
+            self.store(seed, expert_verdict(self.setup.for_seed(seed)))
         return self.lookup(seed)
 
     def lookup(self, seed: int) -> tuple[bool, str | None] | None:
@@ -313,14 +347,26 @@ class ExpertCheck:
             pass  # the cache is an optimisation
 
 
-def expert_verdict(
-    task: Task, seed: int, fps: float, *, randomize: bool = False, split: Split = "unseen"
-) -> dict[str, Any]:
-    """``{"ok": ..., "reason": ...}``: whether the expert solves `seed` in physics (no cameras),
-    on the plain scene or, with `randomize`, on the seed's randomized scene of `split`."""
-    station = StationConfig(control_rate=fps, render=False)
+#: Station settings that do not change what the expert does in physics.
+_NOT_PHYSICS = {"embodiment", "control_rate", "render", "cameras"}
+
+
+def _station_key(station: StationConfig) -> str:
+    """``@station-<hash>`` of the station's physics settings, empty when they are the
+    defaults (cache keys of default stations stay what they were)."""
+    settings = station.model_dump(exclude=_NOT_PHYSICS)
+    if settings == StationConfig().model_dump(exclude=_NOT_PHYSICS):
+        return ""
+    text = json.dumps(settings, sort_keys=True)
+    return "@station-" + hashlib.sha256(text.encode()).hexdigest()[:8]
+
+
+def expert_verdict(setup: EpisodeSetup) -> dict[str, Any]:
+    """``{"ok": ..., "reason": ...}``: whether the expert solves `setup`'s episode in physics
+    (no cameras): its scene (plain, or with `randomize` the seed's randomized scene of its
+    split), robot and station."""
     try:
-        result = generation.run_expert(task, seed, station, randomize=randomize, split=split)
+        result = generation.run_expert(setup.without_cameras())
         return {"ok": result.success, "reason": result.reason}
     except Exception as exc:  # an expert crash is a failed seed, not a failed run
         return {"ok": False, "reason": f"expert crashed: {generation.format_failure(exc)}"}

@@ -1,6 +1,7 @@
 """Leaf systems of the station: action interpolation, gravity feed-forward, state readout.
 
-The 14-dim action is ``[left 6 joints, left opening, right 6 joints, right opening]``. Every
+The action is ``[left q (n), left opening, right q (n), right opening]`` for arms of n joints
+(:class:`~bicoord_drake.models.layout.ActionLayout`; 14 numbers for the ViperX pair). Every
 control period the :class:`ActionInterpolator` latches the new action and, until the next period,
 moves the PD targets linearly from the previous action to it (a first-order hold). Expert and
 policies drive the robot through this one path.
@@ -20,45 +21,52 @@ from pydrake.all import (
 )
 
 from bicoord_drake.models.embodiment import SIDES, Embodiment
-
-ACTION_SIZE = 14
-
-
-def split_action(action: np.ndarray) -> dict[str, tuple[np.ndarray, float]]:
-    """14-vector -> {'left': (q6, opening), 'right': (q6, opening)}."""
-    a = np.asarray(action, dtype=float)
-    return {"left": (a[0:6], float(a[6])), "right": (a[7:13], float(a[13]))}
+from bicoord_drake.models.layout import action_layout
 
 
 class ActionInterpolator(LeafSystem):
     """Latches the action every control period; outputs per-arm PD desired states (FOH).
 
-    Discrete state: ``[previous action (14), current action (14), latch time (1)]``. Output
-    ``desired_states`` (28): the left arm's then the right arm's PD desired state, each in
-    actuator order ``[q arm (6), finger (1), v arm (6), finger velocity (1)]`` (the layout of the
-    plant's desired-state input ports). One output for both arms, split by a native
-    ``Demultiplexer`` in the station: the plant reads it every step, so it is computed once.
+    Discrete state: ``[previous action (A), current action (A), latch time (1)]`` for actions
+    of A = 2 (n + 1) numbers. Output ``desired_states`` (2 A): the left arm's then the right
+    arm's PD desired state, each in actuator order ``[q arm (n), finger (1), v arm (n), finger
+    velocity (1)]`` (the layout of the plant's desired-state input ports). One output for both
+    arms, split by a native ``Demultiplexer`` in the station: the plant reads it every step, so
+    it is computed once.
     """
 
     def __init__(self, embodiment: Embodiment, control_period: float) -> None:
         super().__init__()
         self._gripper = embodiment.arm.gripper
         self._period = control_period
-        self._action = self.DeclareVectorInputPort("action", ACTION_SIZE)
+        layout = action_layout(embodiment)
+        size, width = layout.action_size, layout.arm_width
+        self._size, self._width = size, width
+        self._action = self.DeclareVectorInputPort("action", size)
         home = embodiment.home_action()
         self._state = self.DeclareDiscreteState(np.concatenate([home, home, [0.0]]))
         self.DeclarePeriodicDiscreteUpdateEvent(control_period, 0.0, self._latch)
-        # Where the action's 14 entries go in the 28-vector [left q, left v, right q, right v].
-        self._q_slots = np.r_[0:7, 14:21]
-        self._v_slots = np.r_[7:14, 21:28]
-        self._finger_q = self._q_slots[[6, 13]]  # each arm's finger position (its velocity: +7)
-        self._desired_states = self.DeclareVectorOutputPort("desired_states", 2 * 14, self._desired)
+        # Where the action's entries go in the desired-state vector [left q, left v, right q,
+        # right v] (each q and v block is one side's `width` numbers: arm joints, then finger).
+        self._q_slots = np.concatenate(
+            [np.arange(2 * k * width, (2 * k + 1) * width) for k in range(len(SIDES))]
+        )
+        self._v_slots = self._q_slots + width
+        # each arm's finger position (its velocity: + width)
+        self._finger_q = self._q_slots[layout.gripper_indices]
+        self._desired_states = self.DeclareVectorOutputPort(
+            "desired_states", 2 * size, self._desired
+        )
 
     def action_input_port(self):
         return self._action
 
     def desired_states_output_port(self):
         return self._desired_states
+
+    def desired_state_sizes(self) -> list[int]:
+        """The size of each arm's desired state, in ``SIDES`` order (the output's split)."""
+        return [2 * self._width] * len(SIDES)
 
     def set_action(self, context: Context, action: np.ndarray) -> None:
         """Hold `action` from now on without interpolation (used at reset)."""
@@ -71,26 +79,27 @@ class ActionInterpolator(LeafSystem):
         x = context.get_discrete_state(self._state).get_value()
         new = self._action.Eval(context)
         discrete_state.get_mutable_vector(self._state).set_value(
-            np.concatenate([x[14:28], new, [context.get_time()]])
+            np.concatenate([x[self._size : 2 * self._size], new, [context.get_time()]])
         )
 
     def _desired(self, context: Context, output: BasicVector) -> None:
         x = context.get_discrete_state(self._state).get_value()
-        prev, curr, t0 = x[0:14], x[14:28], x[28]
+        size = self._size
+        prev, curr, t0 = x[0:size], x[size : 2 * size], x[2 * size]
         elapsed = context.get_time() - t0
         s = min(max(elapsed / self._period, 0.0), 1.0)
         delta = curr - prev
         # The segment's velocity holds on the closed period: the plant step that coincides with
         # the next latch still reads this segment, and a zero there would brake the arm.
         moving = elapsed <= self._period * (1.0 + 1e-9)
-        # Layout per arm: [q arm (6), finger, v arm (6), finger velocity]; the action's opening
-        # (index 6 of each arm's 7) becomes a finger position and a finger velocity.
-        out = np.empty(28)
+        # Layout per arm: [q arm (n), finger, v arm (n), finger velocity]; the action's opening
+        # (the last of each arm's n + 1 numbers) becomes a finger position and a finger velocity.
+        out = np.empty(2 * size)
         out[self._q_slots] = prev + s * delta
         out[self._v_slots] = delta / self._period if moving else 0.0
         g = self._gripper
         out[self._finger_q] = g.finger_position(out[self._finger_q])
-        out[self._finger_q + 7] *= g.finger_max - g.finger_min
+        out[self._finger_q + self._width] *= g.finger_max - g.finger_min
         output.SetFromVector(out)
 
 
@@ -144,9 +153,10 @@ class GravityFeedForward(LeafSystem):
 
 
 class StationObserver(LeafSystem):
-    """Joint state (14), TCP poses and object poses, read from the plant.
+    """Joint state, TCP poses and object poses, read from the plant.
 
-    Outputs: ``joint_state`` = [left q (6), left opening, right q (6), right opening];
+    Outputs: ``joint_state`` = [left q (n), left opening, right q (n), right opening] (the
+    action's layout);
     ``left_tcp_pose`` / ``right_tcp_pose`` = xyz + quaternion wxyz in world;
     ``object_poses`` = 7 numbers per scene object, in scene order.
     """
@@ -171,7 +181,9 @@ class StationObserver(LeafSystem):
         }
         self._X_GT = RigidTransform([embodiment.arm.gripper.tcp_x, 0.0, 0.0])
         self._object_bodies = [b.index() for b in object_bodies]
-        self.DeclareVectorOutputPort("joint_state", ACTION_SIZE, self._joint_state)
+        layout = action_layout(embodiment)
+        self._n = layout.arm_joints
+        self.DeclareVectorOutputPort("joint_state", layout.state_size, self._joint_state)
         for side in SIDES:
             self.DeclareVectorOutputPort(
                 f"{side}_tcp_pose",
@@ -186,8 +198,8 @@ class StationObserver(LeafSystem):
         out = []
         for side in SIDES:
             q = self._plant.GetPositionsFromArray(self._arms[side], q_all)
-            out.extend(q[:6])
-            out.append(float(self._gripper.opening(q[6])))
+            out.extend(q[: self._n])
+            out.append(float(self._gripper.opening(q[self._n])))
         output.SetFromVector(np.asarray(out))
 
     def _tcp(self, context: Context, output: BasicVector, side: str) -> None:

@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from pydrake.all import RigidTransform, Simulator
 
+from bicoord_drake.models.embodiment import SIDES
 from bicoord_drake.sim.cameras import extrinsic_matrix, intrinsic_matrix, intrinsics
-from bicoord_drake.sim.control import ACTION_SIZE
 from bicoord_drake.sim.station import Station, build_station  # noqa: F401  (re-export)
 
 
@@ -36,13 +36,14 @@ class Simulation:
         st.diagram.SetDefaultContext(self.context)
         action = st.embodiment.home_action() if action is None else self._check(action)
         plant_context = self.plant_context
-        g = st.embodiment.arm.gripper
-        for k, side in enumerate(("left", "right")):
-            q = np.concatenate(
-                [action[7 * k : 7 * k + 6], [g.finger_position(action[7 * k + 6])] * 2]
-            )
+        g, layout = st.embodiment.arm.gripper, st.layout
+        for side in SIDES:
+            finger = g.finger_position(action[layout.gripper(side)])
+            q = np.concatenate([action[layout.arm(side)], [finger] * 2])
             st.plant.SetPositions(plant_context, st.arms[side], q)
-            st.plant.SetVelocities(plant_context, st.arms[side], np.zeros(8))
+            st.plant.SetVelocities(
+                plant_context, st.arms[side], np.zeros(st.plant.num_velocities(st.arms[side]))
+            )
         st.interpolator.set_action(
             st.interpolator.GetMyMutableContextFromRoot(self.context), action
         )
@@ -90,9 +91,7 @@ class Simulation:
         self.simulator.AdvanceTo(self._steps * self.station.config.control_period)
 
     def _check(self, action: np.ndarray) -> np.ndarray:
-        a = np.asarray(action, dtype=float)
-        if a.shape != (ACTION_SIZE,):
-            raise ValueError(f"action must have shape ({ACTION_SIZE},), got {a.shape}")
+        a = self.station.layout.check(action)
         if not np.all(np.isfinite(a)):
             raise ValueError("action contains NaN or infinite values")
         return a
@@ -114,7 +113,7 @@ class Simulation:
         return self.station.diagram.GetOutputPort(name).Eval(self.context)
 
     def joint_state(self) -> np.ndarray:
-        """[left q (6), left opening, right q (6), right opening]."""
+        """[left q (n), left opening, right q (n), right opening] (``station.layout``)."""
         return np.array(self._eval("joint_state"))
 
     def tcp_pose(self, side: str) -> np.ndarray:

@@ -10,24 +10,37 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from bicoord_drake.config import StationConfig
+from bicoord_drake.models.layout import action_layout
+from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import build_station
 
-#: Named arm poses (one arm's joints; the right arm mirrors the waist and forearm/wrist rolls).
-ARM_POSES: dict[str, tuple[float, ...]] = {
-    "home": (0.0, -0.96, 1.16, 0.0, 0.4, 0.0),
+#: Named arm poses: ``home`` is the embodiment's own; the others are one 6-joint arm's joints
+#: (ViperX-like kinematics), the right arm mirroring the waist and the forearm/wrist rolls.
+ARM_POSES: dict[str, tuple[float, ...] | None] = {
+    "home": None,
     "reach": (-0.35, 0.05, 0.35, 0.0, 1.0, 0.0),
 }
+_MIRROR = np.array([-1, 1, 1, -1, 1, -1])
 
 
 def pose_action(config: StationConfig, pose: str) -> np.ndarray:
-    """The 14-dim action holding both arms at a named pose with open grippers."""
+    """The action holding both arms of `config`'s embodiment at a named pose, grippers open."""
     if pose not in ARM_POSES:
         raise ValueError(f"unknown pose {pose!r}; choose one of: {', '.join(ARM_POSES)}")
-    q = np.array(ARM_POSES[pose])
-    mirror = q * np.array([-1, 1, 1, -1, 1, -1])
-    return np.concatenate([q, [1.0], mirror, [1.0]])
+    embodiment = get_embodiment(config.embodiment)
+    q = ARM_POSES[pose]
+    if q is None:
+        return embodiment.home_action()
+    layout = action_layout(embodiment)
+    if len(q) != layout.arm_joints:
+        raise ValueError(
+            f"pose {pose!r} is defined for 6-joint arms; {embodiment.name} has "
+            f"{layout.arm_joints}: use pose 'home'"
+        )
+    left = np.array(q)
+    return layout.compose({"left": left, "right": left * _MIRROR}, {"left": 1.0, "right": 1.0})
 
 
 def render_snapshot(

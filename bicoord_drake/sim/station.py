@@ -5,12 +5,13 @@ fallback) holding the table, two arms and the scene's objects, plus:
 
 - joint PD control inside the plant (mutable actuator gains; SAP integrates it implicitly) with a
   gravity feed-forward computed on a robot-only control plant,
-- an :class:`~bicoord_drake.sim.control.ActionInterpolator` that turns the 14-dim action into PD
+- an :class:`~bicoord_drake.sim.control.ActionInterpolator` that turns the action into PD
   targets with a first-order hold over each control period,
 - a :class:`~bicoord_drake.sim.control.StationObserver` for joint state, TCP and object poses,
 - the cameras (optional).
 
-Exported diagram ports. Input: ``action`` (14). Outputs: ``joint_state`` (14),
+Exported diagram ports, sized by the embodiment's :class:`~bicoord_drake.models.layout.ActionLayout`
+(``Station.layout``; 14 numbers for the ViperX pair). Input: ``action``. Outputs: ``joint_state``,
 ``left_tcp_pose`` / ``right_tcp_pose`` (7, xyz + wxyz), ``object_poses`` (7 per object),
 ``plant_state``, and per camera ``<cam>_rgb``, ``<cam>_depth`` (if enabled), ``<cam>_label``,
 ``<cam>_pose``.
@@ -19,6 +20,7 @@ Exported diagram ports. Input: ``action`` (14). Outputs: ``joint_state`` (14),
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from pydrake.all import (
@@ -34,15 +36,20 @@ from pydrake.all import (
     Parser,
     PdControllerGains,
     PrismaticJoint,
+    ProximityProperties,
     RigidTransform,
+    Role,
+    RoleAssign,
     RollPitchYaw,
     SceneGraph,
 )
 
 from bicoord_drake.config import StationConfig
-from bicoord_drake.models.embodiment import SIDES, Embodiment, arm_sdf, get_embodiment
+from bicoord_drake.models.embodiment import SIDES, Embodiment, arm_sdf
 from bicoord_drake.models.geometry import Pose
+from bicoord_drake.models.layout import ActionLayout, action_layout
 from bicoord_drake.models.objects import object_sdf
+from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.models.table import table_sdf
 from bicoord_drake.sim.cameras import CameraMount, add_cameras
@@ -70,6 +77,11 @@ class Station:
     @property
     def camera_names(self) -> list[str]:
         return list(self.cameras)
+
+    @cached_property
+    def layout(self) -> ActionLayout:
+        """Where each arm's joints and opening sit in the action and joint-state vectors."""
+        return action_layout(self.embodiment)
 
 
 def rigid_transform(pose: Pose) -> RigidTransform:
@@ -172,6 +184,19 @@ def _configure_actuators(
         )
 
 
+def _set_hydroelastic_margin(plant: MultibodyPlant, scene_graph: SceneGraph, margin: float) -> None:
+    """Give every hydroelastic geometry (compliant or rigid) Drake's contact `margin` (m)."""
+    inspector = scene_graph.model_inspector()
+    source = plant.get_source_id()
+    for geometry in inspector.GetAllGeometryIds(Role.kProximity):
+        props = inspector.GetProximityProperties(geometry)
+        if not props.HasProperty("hydroelastic", "compliance_type"):
+            continue
+        props = ProximityProperties(props)
+        props.UpdateProperty("hydroelastic", "margin", margin)
+        scene_graph.AssignRole(source, geometry, props, RoleAssign.kReplace)
+
+
 def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
     """Build the simulation diagram for `scene` (see the module docstring for its ports)."""
     config = config or StationConfig()
@@ -189,13 +214,17 @@ def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
     arms = add_robot(plant, embodiment)
     _configure_actuators(plant, embodiment, arms, config.kp_scale)
     object_bodies = add_scene_objects(plant, scene)
+    if config.hydroelastic_margin > 0:
+        _set_hydroelastic_margin(plant, scene_graph, config.hydroelastic_margin)
     plant.Finalize()
 
     interpolator = builder.AddNamedSystem(
         "action_interpolator", ActionInterpolator(embodiment, config.control_period)
     )
     builder.ExportInput(interpolator.action_input_port(), "action")
-    desired = builder.AddNamedSystem("desired_state_split", Demultiplexer([14] * len(SIDES)))
+    desired = builder.AddNamedSystem(
+        "desired_state_split", Demultiplexer(interpolator.desired_state_sizes())
+    )
     builder.Connect(interpolator.desired_states_output_port(), desired.get_input_port())
     for k, side in enumerate(SIDES):
         builder.Connect(desired.get_output_port(k), plant.get_desired_state_input_port(arms[side]))

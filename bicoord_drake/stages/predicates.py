@@ -20,6 +20,7 @@ from typing import Literal
 
 import numpy as np
 
+from bicoord_drake.models.embodiment import SIDES
 from bicoord_drake.models.objects import (
     BinShape,
     BowlShape,
@@ -31,7 +32,7 @@ from bicoord_drake.models.objects import (
 )
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.models.tools import DustpanCavity
-from bicoord_drake.stages.stage import GRIPPER_INDEX, WorldState
+from bicoord_drake.stages.stage import WorldState
 
 #: A gripper commanded at or above this opening counts as open, below it as closed.
 OPEN_AT = 0.5
@@ -397,7 +398,7 @@ def released(obj: str, open_at: float = OPEN_AT) -> Predicate:
     wrist, link) touching `obj`."""
 
     def check(s: WorldState) -> bool:
-        opened = all(s.action[i] >= open_at for i in GRIPPER_INDEX.values())
+        opened = all(s.opening(side) >= open_at for side in SIDES)
         return opened and not s.touching(obj)
 
     return Predicate(check, f"released({obj!r})")
@@ -546,7 +547,7 @@ def hands_free(objects: Sequence[str], open_at: float = OPEN_AT) -> Predicate:
     objects = tuple(objects)
 
     def check(s: WorldState) -> bool:
-        opened = all(s.action[i] >= open_at for i in GRIPPER_INDEX.values())
+        opened = all(s.opening(side) >= open_at for side in SIDES)
         return opened and not any(s.touching(o) for o in objects)
 
     return Predicate(check, f"hands_free({', '.join(map(repr, objects))})")

@@ -11,6 +11,7 @@ directly or derive them from the previous snapshot with :meth:`WorldState.with_v
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
@@ -19,7 +20,9 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from bicoord_drake.models.embodiment import SIDES
 from bicoord_drake.models.geometry import Pose
+from bicoord_drake.models.layout import ActionLayout, default_embodiment, layout_of
 from bicoord_drake.models.objects import Shape
 from bicoord_drake.models.scene import Scene
 
@@ -27,9 +30,12 @@ if TYPE_CHECKING:  # no Drake import at run time: predicates and tests stay Drak
     from bicoord_drake.sim.simulation import Simulation
 
 StageKind = Literal["transient", "persistent"]
-SIDE_NAMES = ("left", "right")
-#: Index of each arm's gripper opening in the 14-dim action / joint-state vector.
-GRIPPER_INDEX = {"left": 6, "right": 13}
+
+
+@functools.cache
+def _default_layout() -> ActionLayout:
+    """The layout of the default embodiment (synthetic states that give none)."""
+    return layout_of(default_embodiment())
 
 
 # --------------------------------------------------------------------------- rotations
@@ -84,14 +90,15 @@ class WorldState:
     """What the stage predicates may read at one control step (immutable).
 
     ``object_poses`` / ``tcp_poses``: name or side -> (7,) xyz + quaternion wxyz, world frame.
-    ``joint_state`` and ``action``: 14-dim [left q(6), left opening, right q(6), right opening];
-    ``action`` is the command in effect (opening 1 = open). ``contacts``: object -> sides any of
-    whose robot bodies (fingers, palm, wrist, links) touch it; ``finger_contacts``: object -> sides
-    whose fingers touch it (a subset of ``contacts``; when not given, taken to be ``contacts``).
-    ``object_velocities``: object -> (6,) [v_xyz, w_xyz] in world (may be empty
-    for synthetic states). ``joint_positions``: sliding object (a drawer) -> its prismatic
-    joint's position, m from its scene pose. ``scene`` gives initial poses and shapes (sizes)
-    of the objects.
+    ``joint_state`` and ``action``: vectors of ``layout`` (the robot's; default: the default
+    embodiment's, 14 numbers [left q (6), left opening, right q (6), right opening]), zeros and
+    open grippers when not given; ``action`` is the command in effect (opening 1 = open).
+    ``contacts``: object -> sides any of whose robot bodies (fingers, palm, wrist, links) touch
+    it; ``finger_contacts``: object -> sides whose fingers touch it (a subset of ``contacts``;
+    when not given, taken to be ``contacts``). ``object_velocities``: object -> (6,) [v_xyz,
+    w_xyz] in world (may be empty for synthetic states). ``joint_positions``: sliding object (a
+    drawer) -> its prismatic joint's position, m from its scene pose. ``scene`` gives initial
+    poses and shapes (sizes) of the objects.
     """
 
     scene: Scene
@@ -99,12 +106,13 @@ class WorldState:
     step: int = 0
     time: float = 0.0
     tcp_poses: Mapping[str, np.ndarray] = field(default_factory=dict)
-    joint_state: np.ndarray = field(default_factory=lambda: np.zeros(14))
-    action: np.ndarray = field(default_factory=lambda: _open_action())
+    joint_state: np.ndarray | None = None
+    action: np.ndarray | None = None
     contacts: Mapping[str, frozenset[str]] = field(default_factory=dict)
     finger_contacts: Mapping[str, frozenset[str]] | None = None
     object_velocities: Mapping[str, np.ndarray] = field(default_factory=dict)
     joint_positions: Mapping[str, float] = field(default_factory=dict)
+    layout: ActionLayout | None = None
 
     def __post_init__(self) -> None:
         poses = {n: _frozen_array(p, (7,), f"pose of {n!r}") for n, p in self.object_poses.items()}
@@ -132,8 +140,13 @@ class WorldState:
             set_(self, "finger_contacts", MappingProxyType(fingers))
         joints = {n: float(d) for n, d in self.joint_positions.items()}
         set_(self, "joint_positions", MappingProxyType(joints))
-        set_(self, "joint_state", _frozen_array(self.joint_state, (14,), "joint_state"))
-        set_(self, "action", _frozen_array(self.action, (14,), "action"))
+        layout = self.layout or _default_layout()
+        set_(self, "layout", layout)
+        size = (layout.action_size,)
+        joint_state = np.zeros(size) if self.joint_state is None else self.joint_state
+        action = _open_action(layout) if self.action is None else self.action
+        set_(self, "joint_state", _frozen_array(joint_state, size, "joint_state"))
+        set_(self, "action", _frozen_array(action, size, "action"))
 
     # ---------------------------------------------------------------- construction
     @classmethod
@@ -165,13 +178,14 @@ class WorldState:
             step=sim.steps,
             time=sim.time,
             object_poses=sim.object_poses(),
-            tcp_poses={side: sim.tcp_pose(side) for side in SIDE_NAMES},
+            tcp_poses={side: sim.tcp_pose(side) for side in SIDES},
             joint_state=sim.joint_state(),
             action=np.asarray(action, dtype=float),
             contacts=sim.robot_contacts(),
             finger_contacts=sim.finger_contacts(),
             object_velocities=velocities,
             joint_positions=sim.joint_positions(),
+            layout=station.layout,
         )
 
     def with_velocities_from(self, previous: WorldState) -> WorldState:
@@ -237,7 +251,7 @@ class WorldState:
 
     def opening(self, side: str) -> float:
         """Commanded gripper opening of one arm (1 = open)."""
-        return float(self.action[GRIPPER_INDEX[side]])
+        return float(self.action[self.layout.gripper(side)])
 
     def touching(self, name: str) -> frozenset[str]:
         """Sides any of whose robot bodies (fingers, palm, wrist, links) touch the object now."""
@@ -250,9 +264,9 @@ class WorldState:
         return fingers.get(name, frozenset())
 
 
-def _open_action() -> np.ndarray:
-    action = np.zeros(14)
-    action[list(GRIPPER_INDEX.values())] = 1.0
+def _open_action(layout: ActionLayout) -> np.ndarray:
+    action = np.zeros(layout.action_size)
+    action[layout.gripper_indices] = 1.0
     return action
 
 

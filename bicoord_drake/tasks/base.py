@@ -19,7 +19,7 @@ A task file reads top to bottom like its description::
 
         def sample_scene(self, seed): ...      # all randomness from default_rng(seed)
         def stages(self, scene): ...
-        def expert(self, scene, view): ...     # yields one 14-dim action per control step
+        def expert(self, scene, view): ...     # yields one action per control step
 
 A task never touches HDF5 or the simulator directly: the runner steps the simulation with the
 expert's actions and the expert reads privileged state through a read-only :class:`WorldView`.
@@ -34,10 +34,13 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 
 from bicoord_drake.models.appearance import Split
+from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.models.layout import ActionLayout
 from bicoord_drake.models.scene import Scene
-from bicoord_drake.stages.stage import SIDE_NAMES, Stage, WorldState
+from bicoord_drake.stages.stage import Stage, WorldState
 
 if TYPE_CHECKING:
+    from bicoord_drake.planning.model import PlanningModel
     from bicoord_drake.planning.skills import Motion, SkillContext
     from bicoord_drake.sim.simulation import Simulation
 
@@ -63,6 +66,11 @@ class WorldView:
         return self._sim.station.embodiment
 
     @property
+    def layout(self) -> ActionLayout:
+        """Where each arm's joints and opening sit in actions and joint states."""
+        return self._sim.station.layout
+
+    @property
     def config(self):
         """The station's (frozen) StationConfig."""
         return self._sim.station.config
@@ -77,13 +85,13 @@ class WorldView:
         return self._sim.steps
 
     def joint_state(self) -> np.ndarray:
-        """Measured [left q (6), left opening, right q (6), right opening]."""
+        """Measured [left q (n), left opening, right q (n), right opening] (:attr:`layout`)."""
         return self._sim.joint_state()
 
     def tcp_pose(self, side: str) -> np.ndarray:
         """TCP pose of one arm: xyz + quaternion wxyz, world frame."""
-        if side not in SIDE_NAMES:
-            raise ValueError(f"side must be one of {SIDE_NAMES}, got {side!r}")
+        if side not in SIDES:
+            raise ValueError(f"side must be one of {SIDES}, got {side!r}")
         return self._sim.tcp_pose(side)
 
     def object_poses(self) -> dict[str, np.ndarray]:
@@ -97,14 +105,19 @@ class WorldView:
         return np.array(poses[name])
 
     def arm_positions(self) -> np.ndarray:
-        """Measured joint angles of both arms (12,): left 6 then right 6 (``SkillContext.sync``)."""
-        js = self.joint_state()
-        return np.concatenate([js[0:6], js[7:13]])
+        """Measured joint angles of both arms (2 n,): left then right (``SkillContext.sync``)."""
+        return self.layout.arm_positions(self.joint_state())
 
     def gripper_openings(self) -> dict[str, float]:
         """Measured gripper openings per side (1 = open)."""
-        js = self.joint_state()
-        return {"left": float(js[6]), "right": float(js[13])}
+        return self.layout.openings(self.joint_state())
+
+    def planning_model(self) -> PlanningModel:
+        """A new planning model of this scene and robot (kinematics and collision for the
+        planners; an expert builds its skill context on it)."""
+        from bicoord_drake.planning.model import PlanningModel
+
+        return PlanningModel(self.scene, self.embodiment)
 
     def object_transforms(self) -> dict:
         """Every object's pose as a Drake ``RigidTransform`` X_WO (for ``SkillContext.sync``)."""
@@ -162,7 +175,8 @@ class Task(ABC):
 
     @abstractmethod
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        """Yield one 14-dim action per control step; read state from `view` between yields.
+        """Yield one action per control step (``view.layout``: 14 numbers for the ViperX pair);
+        read state from `view` between yields.
 
         Raise :class:`bicoord_drake.planning.errors.PlanningError` when planning fails.
         """

@@ -362,3 +362,38 @@ def test_capture_from_a_simulation_and_restore_a_stage_start(tmp_path):
     plant.SetPositionsAndVelocities(sim.plant_context, e.initial_state[0])
     for name, poses in e.objects.items():
         np.testing.assert_allclose(sim.object_poses()[name], poses[0], atol=1e-12)
+
+
+def test_a_seven_joint_robot_writes_its_own_layout(tmp_path, monkeypatch):
+    """Widths, slices and gripper columns follow the recorder's layout; the reader, the metrics
+    reader and the LeRobot features follow the file's robot."""
+    from bicoord_drake.data import export
+    from bicoord_drake.models.layout import ActionLayout
+
+    layout = ActionLayout(7, tuple(f"j{i}" for i in range(1, 8)))
+    rec = EpisodeRecorder(fps=15, initial_action=np.full(16, 0.5), layout=layout)
+    for t in range(T):
+        f = frame(t)
+        action = layout.compose(
+            {"left": np.full(7, t / T), "right": np.full(7, -t / T)},
+            {"left": f["action"][6], "right": 1.0},
+        )
+        rec.add_frame(**{**f, "action": action, "joint_state": action * 0.99})
+    with pytest.raises(ValueError, match=r"action must have shape \(16,\)"):
+        rec.add_frame(**frame(0))  # a 14-vector of the ViperX pair
+    path = rec.write(tmp_path / "episode0.hdf5", ROWS, meta(embodiment="seven"))
+    with h5py.File(path, "r") as f:
+        assert f["joint_action/vector"].shape == (T, 16)
+        assert f["joint_action/left_arm"].shape == f["joint_action/right_arm"].shape == (T, 7)
+        np.testing.assert_array_equal(f["joint_action/left_gripper"][()], rec.actions[:, 7])
+        np.testing.assert_array_equal(f["joint_action/right_arm"][()], rec.actions[:, 8:15])
+        assert f["stages/initial_action"].shape == (2, 16)
+    episode = read_episode(path)
+    assert episode.embodiment == "seven" and episode.joint_state.shape == (T, 16)
+    traj = read_trajectory(path)
+    np.testing.assert_array_equal(traj.left_gripper, rec.actions[:, 7])
+    monkeypatch.setattr(export, "layout_of", lambda name: layout)
+    features = export.lerobot_features(episode)
+    assert features["action"]["shape"] == features["observation.state"]["shape"] == (16,)
+    assert features["action"]["names"][7] == "left_gripper"
+    assert features["observation.endpose"]["shape"] == (14,)

@@ -9,10 +9,10 @@ from bicoord_drake.models.embodiment import (
     Embodiment,
     aloha_viperx,
     arm_sdf,
-    get_embodiment,
     other_side,
 )
 from bicoord_drake.models.geometry import pose_matrix
+from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.sim.station import add_robot
 
 
@@ -157,7 +157,7 @@ def test_arm_sdf_is_reused_but_never_names_a_missing_mesh(tmp_path, monkeypatch)
     import re
     from pathlib import Path
 
-    from bicoord_drake.models.embodiment import arm_sdf, get_embodiment
+    from bicoord_drake.models.embodiment import arm_sdf
 
     def meshes(sdf: str) -> list[Path]:
         return [Path(p) for p in re.findall(r"<uri>file://([^<]+)</uri>", sdf)]

@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
-from bicoord_drake.models.embodiment import get_embodiment
 from bicoord_drake.models.geometry import Pose, Primitive
 from bicoord_drake.models.objects import (
     BowlShape,
@@ -16,6 +15,7 @@ from bicoord_drake.models.objects import (
     SceneObject,
     SphereShape,
 )
+from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import (

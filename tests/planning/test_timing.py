@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bicoord_drake.models.embodiment import get_embodiment
+from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.throwing import (
     ballistic_landing,

@@ -71,3 +71,20 @@ class BrokenConstructor:
 
 
 NOT_A_POLICY = 42
+
+
+class Spy:
+    """Holds still and records, at every bind, what the environment was built with."""
+
+    bound: list[dict] = []
+
+    def bind(self, env):
+        Spy.bound.append(
+            {"setup": env.setup, "scene": env.scene, "station": env.sim.station.config}
+        )
+
+    def reset(self, instruction):
+        pass
+
+    def act(self, obs):
+        return obs["joint_state"]

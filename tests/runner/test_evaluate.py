@@ -110,10 +110,10 @@ def test_seeds_the_expert_fails_are_skipped_counted_and_cached(tmp_path, monkeyp
 
     calls = []
 
-    def fake_run_expert(task, seed, station_config, depth=False, randomize=False, split="seen"):
-        calls.append(seed)
-        ok = seed != 100001
-        return generate.EpisodeResult(seed, ok, None if ok else "planning: ik_infeasible")
+    def fake_run_expert(setup, depth=False):
+        calls.append(setup.seed)
+        ok = setup.seed != 100001
+        return generate.EpisodeResult(setup.seed, ok, None if ok else "planning: ik_infeasible")
 
     monkeypatch.setattr(generate, "run_expert", fake_run_expert)
     cfg = config(tmp_path, expert_check=True, step_limit=2)

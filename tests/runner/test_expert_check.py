@@ -9,6 +9,8 @@ from pathlib import Path
 import pytest
 
 import bicoord_drake.runner.evaluate_parallel as parallel
+from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.scene import Scene, cube
 from bicoord_drake.runner import generate as gen
 from bicoord_drake.runner.backends import InlineBackend
@@ -47,36 +49,55 @@ class ClutterOnly(Task):
 
 
 def test_the_verdict_is_the_one_of_the_randomized_scene_of_the_split():
-    task = ClutterOnly()
-    plain = expert_verdict(task, 3, 15.0)
+    def verdict(**scene):
+        return expert_verdict(EpisodeSetup(task=ClutterOnly(), seed=3, **scene))
+
+    plain = verdict()
     assert not plain["ok"] and plain["reason"].startswith("stage_not_verified")
-    assert not expert_verdict(task, 3, 15.0, randomize=True, split="seen")["ok"]
-    assert expert_verdict(task, 3, 15.0, randomize=True, split="unseen") == {
-        "ok": True,
-        "reason": None,
-    }
+    assert not verdict(randomize=True, split="seen")["ok"]
+    assert verdict(randomize=True, split="unseen") == {"ok": True, "reason": None}
+
+
+def check(path, **settings) -> ExpertCheck:
+    """The jigsaw expert check with these episode settings (fps: the station's rate)."""
+    fps = settings.pop("fps", 15.0)
+    station = StationConfig(control_rate=fps, **settings.pop("station", {}))
+    setup = EpisodeSetup(task=get_task("jigsaw"), seed=0, station=station, **settings)
+    return ExpertCheck(setup, path)
 
 
 def test_the_cache_keeps_plain_and_randomized_verdicts_apart(tmp_path):
-    task = get_task("jigsaw")
     path = tmp_path / "check.json"
-    plain = ExpertCheck(task, 15.0, path)
+    plain = check(path)
     plain.store(7, {"ok": False, "reason": "planning: no grasp"})
-    unseen = ExpertCheck(task, 15.0, path, randomize=True, split="unseen")
+    unseen = check(path, randomize=True, split="unseen")
     assert unseen.lookup(7) is None  # the plain scene's verdict says nothing of this one
     unseen.store(7, {"ok": True, "reason": None})
-    assert ExpertCheck(task, 15.0, path, randomize=True, split="seen").lookup(7) is None
+    assert check(path, randomize=True, split="seen").lookup(7) is None
     # each verdict survives in the file under its own key
-    assert ExpertCheck(task, 15.0, path).lookup(7) == (False, "planning: no grasp")
-    assert ExpertCheck(task, 15.0, path, randomize=True).lookup(7) == (True, None)
+    assert check(path).lookup(7) == (False, "planning: no grasp")
+    assert check(path, randomize=True, split="unseen").lookup(7) == (True, None)
     assert len(json.loads(path.read_text())) == 2
+
+
+def test_the_cache_keeps_control_rates_and_physics_settings_apart(tmp_path):
+    path = tmp_path / "check.json"
+    check(path).store(7, {"ok": True, "reason": None})
+    assert check(path, fps=10.0).lookup(7) is None
+    assert check(path, station={"time_step": 1 / 150}).lookup(7) is None
+    # cameras and resolution do not change what the expert does
+    assert check(path, station={"render": False}).lookup(7) == (True, None)
+    plain_key = check(path)._key(7)
+    assert plain_key.startswith("7@15Hz@") and "station" not in plain_key
 
 
 def test_for_config_takes_the_evaluation_scene_settings():
     task = get_task("jigsaw")
     config = EvaluateConfig(task="jigsaw", policy="noop", randomize=True, split="seen", fps=10)
-    check = ExpertCheck.for_config(task, config)
-    assert (check.fps, check.randomize, check.split) == (10.0, True, "seen")
+    expert_check = ExpertCheck.for_config(task, config)
+    assert (expert_check.fps, expert_check.randomize, expert_check.split) == (10.0, True, "seen")
+    setup = expert_check.setup
+    assert setup.embodiment == config.embodiment and not setup.station.render
 
 
 @pytest.fixture
@@ -84,9 +105,9 @@ def expert_calls(monkeypatch):
     """run_expert replaced by a stand-in that fails every seed and records its scene settings."""
     calls = []
 
-    def fake_run_expert(task, seed, station_config, depth=False, randomize=False, split="seen"):
-        calls.append((seed, randomize, split))
-        return gen.EpisodeResult(seed, False, "planning: stand-in")
+    def fake_run_expert(setup, depth=False):
+        calls.append((setup.seed, setup.randomize, setup.split))
+        return gen.EpisodeResult(setup.seed, False, "planning: stand-in")
 
     monkeypatch.setattr(gen, "run_expert", fake_run_expert)
     return calls

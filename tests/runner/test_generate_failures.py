@@ -7,6 +7,7 @@ import pytest
 from pydantic import ValidationError
 
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.scene import Scene, cube
 from bicoord_drake.runner import generate as gen
 from bicoord_drake.stages import Stage, StageMonitor
@@ -34,23 +35,24 @@ class StandStill(Task):
 
 
 def test_an_annotation_failure_is_a_failed_seed_with_its_reason(monkeypatch):
-    ok = gen.run_expert(StandStill(), 3, StationConfig(render=False))
+    setup = EpisodeSetup(task=StandStill(), seed=3, station=StationConfig(render=False))
+    ok = gen.run_expert(setup)
     assert ok.success and ok.rows[-1][1] == 3
 
     def refuse(self, T=None):
         raise ValueError("stage 0 ('be') would span frames [0, 0) of T = 0")
 
     monkeypatch.setattr(StageMonitor, "annotations", refuse)
-    result = gen.run_expert(StandStill(), 3, StationConfig(render=False))
+    result = gen.run_expert(setup)
     assert not result.success and result.reason.startswith("annotation: ")
     assert "would span" in result.reason
 
 
 def test_a_seed_that_crashes_is_recorded_and_the_run_goes_on(tmp_path, monkeypatch):
-    def flaky(task, seed, station_config, depth=False, randomize=False):
-        if seed == 5:
+    def flaky(setup, depth=False):
+        if setup.seed == 5:
             raise RuntimeError("simulator fault on purpose")
-        return gen.EpisodeResult(seed, False, "planning: ik_infeasible")
+        return gen.EpisodeResult(setup.seed, False, "planning: ik_infeasible")
 
     monkeypatch.setattr(gen, "run_expert", flaky)
     config = gen.GenerateConfig(
@@ -79,6 +81,6 @@ def test_seeds_outside_32_bits_are_refused_in_the_config(settings, words):
     gen.GenerateConfig(task="jigsaw", seed=2**32 - 10, episodes=2)  # the top of the range
 
 
-def test_run_expert_refuses_a_seed_outside_32_bits():
+def test_an_episode_setup_refuses_a_seed_outside_32_bits():
     with pytest.raises(ValueError, match=r"\[0, 2\*\*32\)"):
-        gen.run_expert(StandStill(), 2**70, StationConfig(render=False))
+        EpisodeSetup(task=StandStill(), seed=2**70)

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.scene import Scene, cube
 from bicoord_drake.runner import generate as gen
 from bicoord_drake.stages import Stage
@@ -37,7 +38,7 @@ class Wave(Task):
 
 
 def test_a_kept_episode_is_rendered_after_verification_with_every_phase_timed():
-    result = gen.run_expert(Wave(passes=True), 0, StationConfig())
+    result = gen.run_expert(EpisodeSetup(task=Wave(passes=True), seed=0))
     assert result.success
     assert {"build", "planning", "physics", "monitor", "render", "jpeg"} <= set(result.timings)
     assert sorted(result.recorder.cameras) == ["head_camera", "left_camera", "right_camera"]
@@ -47,13 +48,15 @@ def test_a_kept_episode_is_rendered_after_verification_with_every_phase_timed():
 
 
 def test_a_failed_seed_costs_no_rendering():
-    result = gen.run_expert(Wave(passes=False), 0, StationConfig())
+    result = gen.run_expert(EpisodeSetup(task=Wave(passes=False), seed=0))
     assert not result.success and result.reason.startswith("stage_not_verified")
     assert "render" not in result.timings and "physics" in result.timings
 
 
 def test_without_cameras_nothing_is_rendered():
-    result = gen.run_expert(Wave(passes=True), 0, StationConfig(render=False))
+    result = gen.run_expert(
+        EpisodeSetup(task=Wave(passes=True), seed=0, station=StationConfig(render=False))
+    )
     assert result.success and result.recorder.cameras == []
     assert "render" not in result.timings
 

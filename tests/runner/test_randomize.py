@@ -3,15 +3,15 @@ own objects, the expert's actions and the robot's motion stay those of the plain
 
 import numpy as np
 
-from bicoord_drake.config import StationConfig
 from bicoord_drake.env import make_env
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.runner import generate as gen
 from tests.runner.test_generate_timings import Wave
 
 
 def test_randomized_episode_has_the_same_actions_and_motion_but_other_pictures():
-    plain = gen.run_expert(Wave(passes=True), 5, StationConfig())
-    randomized = gen.run_expert(Wave(passes=True), 5, StationConfig(), randomize=True)
+    plain = gen.run_expert(EpisodeSetup(task=Wave(passes=True), seed=5))
+    randomized = gen.run_expert(EpisodeSetup(task=Wave(passes=True), seed=5, randomize=True))
     assert plain.scene.appearance is None and not plain.scene.distractors
     assert randomized.scene.appearance.split == "seen" and randomized.scene.distractors
     np.testing.assert_array_equal(plain.recorder.actions, randomized.recorder.actions)

@@ -147,3 +147,19 @@ def test_contact_approximation_is_the_plants():
     assert default.plant.get_discrete_contact_approximation().name == "kSap"
     with pytest.raises(ValidationError, match="contact_approximation"):
         StationConfig(contact_approximation="tamsi")
+
+
+def test_hydroelastic_margin_reaches_every_hydroelastic_geometry():
+    station = build_station(
+        demo_scene("cubes"), StationConfig(render=False, hydroelastic_margin=1e-4)
+    )
+    inspector = station.scene_graph.model_inspector()
+    margins = [
+        inspector.GetProximityProperties(g).GetPropertyOrDefault("hydroelastic", "margin", 0.0)
+        for g in inspector.GetAllGeometryIds()
+        if inspector.GetProximityProperties(g) is not None
+        and inspector.GetProximityProperties(g).HasProperty("hydroelastic", "compliance_type")
+    ]
+    assert len(margins) > 10 and all(m == pytest.approx(1e-4) for m in margins)
+    with pytest.raises(ValidationError, match="hydroelastic_margin"):
+        StationConfig(hydroelastic_margin=-1e-4)

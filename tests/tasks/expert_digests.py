@@ -28,6 +28,7 @@ import sys
 from pathlib import Path
 
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.tasks import get_task
 
@@ -83,7 +84,9 @@ def expert_digest(task: str, seed: int) -> dict:
 
     Raises RuntimeError if the episode fails (a failed run records no actions to compare).
     """
-    result = run_expert(get_task(task), seed, StationConfig(render=False))
+    result = run_expert(
+        EpisodeSetup(task=get_task(task), seed=seed, station=StationConfig(render=False))
+    )
     if not result.success or result.recorder is None:
         raise RuntimeError(f"{task} seed {seed} failed: {result.reason}")
     actions = result.recorder.actions

@@ -8,6 +8,7 @@ import pytest
 
 import bicoord_drake.tasks.balance_roller as br
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
@@ -151,6 +152,6 @@ def test_stages_count_only_in_order(task, scene):
 @pytest.mark.slow
 def test_expert_balances_the_roller_on_two_seeds(task):
     for seed in (0, 2):
-        result = run_expert(task, seed, StationConfig(render=False))
+        result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
         assert result.success, (seed, result.reason)
         assert len(result.recorder) <= task.step_limit

@@ -7,6 +7,7 @@ import pytest
 
 import bicoord_drake.tasks.clean_table as ct
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.objects import BoxShape
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
@@ -213,6 +214,6 @@ def test_a_bounced_out_object_stops_counting_at_the_end(task, scene):
 @pytest.mark.slow
 def test_expert_fills_the_bin_on_two_seeds(task):
     for seed in (0, 1):
-        result = run_expert(task, seed, StationConfig(render=False))
+        result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
         assert result.success, (seed, result.reason)
         assert len(result.recorder) <= task.step_limit

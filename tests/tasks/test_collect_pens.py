@@ -8,6 +8,7 @@ import pytest
 
 import bicoord_drake.tasks.collect_pens as cp
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.pens import PenShape
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
@@ -218,6 +219,6 @@ def test_a_pen_that_falls_out_stops_counting_at_the_end(task, scene):
 @pytest.mark.slow
 def test_expert_fills_the_holder_on_two_seeds(task):
     for seed in (0, 1):
-        result = run_expert(task, seed, StationConfig(render=False))
+        result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
         assert result.success, (seed, result.reason)
         assert len(result.recorder) <= task.step_limit

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.tasks import get_task
@@ -122,7 +123,7 @@ def test_rolls_on_the_table_beside_the_skillet_are_not_in_it(task):
 def test_expert_throws_each_roll_in_free_flight(cook, task, tmp_path):
     from bicoord_drake.data.episode import EpisodeLayout, EpisodeMeta, read_episode, save_episode
 
-    result = run_expert(task, 0, StationConfig(render=False))
+    result = run_expert(EpisodeSetup(task=task, seed=0, station=StationConfig(render=False)))
     assert result.success, result.reason
     layout = EpisodeLayout(tmp_path, "cook", "default")
     meta = EpisodeMeta(
@@ -144,7 +145,8 @@ def test_expert_throws_each_roll_in_free_flight(cook, task, tmp_path):
 @pytest.mark.slow
 def test_expert_succeeds_on_at_least_90_percent_of_30_seeds(task):
     successes = sum(
-        run_expert(task, seed, StationConfig(render=False)).success for seed in range(30)
+        run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False))).success
+        for seed in range(30)
     )
     assert successes >= 27
 

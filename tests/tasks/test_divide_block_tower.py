@@ -7,6 +7,7 @@ import pytest
 
 import bicoord_drake.tasks.divide_block_tower as dbt
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.runner.generate import run_expert
@@ -291,7 +292,7 @@ def test_the_expert_refuses_to_go_on_with_a_disturbed_tower(mixed):
 @pytest.mark.slow
 def test_expert_divides_the_tower_on_two_seeds(task):
     for seed in (0, 1):  # A B A B (top two differ) and B B A A (top two share a colour)
-        result = run_expert(task, seed, StationConfig(render=False))
+        result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
         assert result.success, (seed, result.reason)
         assert len(result.recorder) <= task.step_limit
 

@@ -8,6 +8,7 @@ import pytest
 
 import bicoord_drake.tasks.exchange_mics  # noqa: F401  (registers the task)
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.objects import CompoundShape
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
@@ -99,6 +100,7 @@ def test_crosswise_placement_scores_half_per_mic(task):
 @pytest.mark.slow
 def test_expert_succeeds_on_at_least_90_percent_of_30_seeds(task):
     successes = sum(
-        run_expert(task, seed, StationConfig(render=False)).success for seed in range(30)
+        run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False))).success
+        for seed in range(30)
     )
     assert successes >= 27

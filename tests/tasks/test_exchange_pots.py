@@ -8,6 +8,7 @@ import pytest
 
 import bicoord_drake.tasks.exchange_pots as ep
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.objects import PotShape
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.planning.model import PlanningModel
@@ -126,6 +127,6 @@ def test_the_plan_swaps_the_pots_on_one_wrist_branch_each(task):
 @pytest.mark.slow
 def test_expert_swaps_the_pots_on_two_seeds(task):
     for seed in (0, 1):
-        result = run_expert(task, seed, StationConfig(render=False))
+        result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
         assert result.success, (seed, result.reason)
         assert len(result.recorder) <= task.step_limit

@@ -8,6 +8,7 @@ import pytest
 
 import bicoord_drake.tasks.fetch_block_with_roller as fb
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.embodiment import aloha_viperx
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.planning.grasps import GraspParams, grasp_candidates
@@ -188,6 +189,6 @@ def test_roller_tool_puts_the_tip_on_the_point_level_along_minus_x():
 @pytest.mark.slow
 def test_expert_fetches_the_block_on_two_seeds(task):
     for seed in (0, 1):
-        result = run_expert(task, seed, StationConfig(render=False))
+        result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
         assert result.success, (seed, result.reason)
         assert len(result.recorder) <= task.step_limit

@@ -7,6 +7,7 @@ import pytest
 
 import bicoord_drake.tasks.handover_block_with_bowls as hbb
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
@@ -105,6 +106,9 @@ def test_pour_bowl_has_a_low_spout_facing_its_x_axis():
 
 @pytest.mark.slow
 def test_expert_succeeds_on_at_least_90_percent_of_30_seeds(task):
-    results = [run_expert(task, seed, StationConfig(render=False)) for seed in range(30)]
+    results = [
+        run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
+        for seed in range(30)
+    ]
     failures = [(r.seed, r.reason) for r in results if not r.success]
     assert len(results) - len(failures) >= 27, failures

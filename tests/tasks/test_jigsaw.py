@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.tasks import get_task
@@ -40,7 +41,7 @@ def test_same_seed_gives_identical_actions_and_object_trajectories(task, tmp_pat
 
     episodes = []
     for k in range(2):
-        result = run_expert(task, 5, StationConfig(render=False))
+        result = run_expert(EpisodeSetup(task=task, seed=5, station=StationConfig(render=False)))
         assert result.success, result.reason
         layout = EpisodeLayout(tmp_path / str(k), "jigsaw", "default")
         meta = EpisodeMeta(
@@ -63,6 +64,7 @@ def test_same_seed_gives_identical_actions_and_object_trajectories(task, tmp_pat
 @pytest.mark.slow
 def test_expert_succeeds_on_at_least_90_percent_of_30_seeds(task):
     successes = sum(
-        run_expert(task, seed, StationConfig(render=False)).success for seed in range(30)
+        run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False))).success
+        for seed in range(30)
     )
     assert successes >= 27

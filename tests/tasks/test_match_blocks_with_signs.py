@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
@@ -223,5 +224,5 @@ def test_upright_part_removes_a_small_tilt_and_keeps_the_end_and_yaw():
 @pytest.mark.slow
 def test_expert_succeeds_on_two_seeds(task):
     for seed in (0, 1):
-        result = run_expert(task, seed, StationConfig(render=False))
+        result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
         assert result.success, result.reason

@@ -7,6 +7,7 @@ import pytest
 
 import bicoord_drake.tasks.put_objects_cabinet as pc
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
@@ -186,7 +187,7 @@ def test_the_stages_count_only_in_order(task, scene):
 @pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 1])
 def test_expert_runs_end_to_end(task, seed):
-    result = run_expert(task, seed, StationConfig(render=False))
+    result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
     assert result.success, result.reason
     assert len(result.recorder) <= task.step_limit
     assert len(result.rows) == 4

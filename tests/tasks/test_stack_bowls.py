@@ -7,6 +7,7 @@ import pytest
 
 import bicoord_drake.tasks.stack_bowls as sb
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import SkillContext, move_tcp, retreat
@@ -175,6 +176,6 @@ def test_bringing_arm_enters_the_stack_only_after_the_other_left(scene):
 @pytest.mark.slow
 def test_expert_nests_all_four_bowls_on_two_seeds(task):
     for seed in (0, 1):
-        result = run_expert(task, seed, StationConfig(render=False))
+        result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
         assert result.success, (seed, result.reason)
         assert len(result.recorder) <= task.step_limit

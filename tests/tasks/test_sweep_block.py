@@ -8,6 +8,7 @@ from pydrake.all import RigidTransform, RollPitchYaw, RotationMatrix
 
 import bicoord_drake.tasks.sweep_block as sb
 from bicoord_drake.config import StationConfig
+from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.embodiment import aloha_viperx
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.runner.generate import run_expert
@@ -193,6 +194,6 @@ def test_stages_count_only_in_order(task, scene):
 @pytest.mark.slow
 def test_expert_sweeps_the_block_on_two_seeds(task):
     for seed in (0, 1):
-        result = run_expert(task, seed, StationConfig(render=False))
+        result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
         assert result.success, (seed, result.reason)
         assert len(result.recorder) <= task.step_limit

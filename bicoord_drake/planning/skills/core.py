@@ -19,6 +19,7 @@ import numpy as np
 from pydrake.all import RigidTransform
 
 from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.models.layout import ActionLayout
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.ik import BimanualIK
 from bicoord_drake.planning.model import PlanningModel
@@ -125,9 +126,13 @@ class Motion:
         )
 
     def actions(self) -> np.ndarray:
-        """(N-1, 14) actions: every sample after the start, as the station's action layout."""
+        """(N-1, 2 (n + 1)) actions: every sample after the start, in the station's action
+        layout (:class:`~bicoord_drake.models.layout.ActionLayout`; 14 numbers for 6-joint
+        arms)."""
         q, g = self.q[1:], self.openings[1:]
-        return np.column_stack([q[:, :6], g[:, 0], q[:, 6:], g[:, 1]])
+        layout = ActionLayout(q.shape[1] // 2)
+        arms = {"left": q[:, : layout.arm_joints], "right": q[:, layout.arm_joints :]}
+        return layout.compose(arms, {"left": g[:, 0], "right": g[:, 1]})
 
 
 class SkillContext:

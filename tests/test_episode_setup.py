@@ -1,0 +1,271 @@
+"""One episode assembly: generation, the policy environment, the Gymnasium environment and the
+evaluation's expert check and rollouts all build their episodes from one EpisodeSetup, so every
+setting - task, seed, randomize, split, robot, station - reaches the simulation on every path.
+
+The settings used here are all non-default (randomized unseen scenes, another control rate,
+another robot: the ViperX pair registered under a second name), so a path that dropped one
+would build the default instead and fail."""
+
+import json
+
+import gymnasium
+import h5py
+import numpy as np
+import pytest
+from pydantic import ValidationError
+
+from bicoord_drake.config import CameraConfig, StationConfig
+from bicoord_drake.data.episode import read_episode, read_manifest
+from bicoord_drake.env import make_env
+from bicoord_drake.episode_setup import EpisodeSetup, assemble
+from bicoord_drake.models.embodiment import aloha_viperx
+from bicoord_drake.models.robots import EMBODIMENTS
+from bicoord_drake.models.scene import Scene, cube
+from bicoord_drake.runner import generate as gen
+from bicoord_drake.runner import rollouts
+from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate
+from bicoord_drake.stages import Stage
+from bicoord_drake.tasks import registry
+from bicoord_drake.tasks.base import Task
+from tests.policies.dummy import Spy
+
+ROBOT = "viperx_copy"
+SEEN: list[dict] = []
+
+
+class Probe(Task):
+    """A one-cube task whose expert records what it was built with, then holds still."""
+
+    name = "setup_probe"
+    step_limit = 10
+    instructions_seen = ("Look around.",) * 5
+    instructions_unseen = ("Have a look.",) * 5
+
+    def sample_scene(self, seed):
+        return Scene(name=self.name, seed=seed, objects=(cube("c", 0.0, 0.0),))
+
+    def stages(self, scene):
+        return [Stage("look", "look", "look", 1.0, lambda s: True, "persistent")]
+
+    def expert(self, scene, view):
+        SEEN.append({"scene": view.scene, "station": view.config, "robot": view.embodiment.name})
+        home = view.embodiment.home_action()
+        for _ in range(2):
+            yield home
+
+
+@pytest.fixture
+def probe(monkeypatch, tmp_path):
+    """The probe task and a second robot registered for this test; a private check cache."""
+    monkeypatch.setitem(registry._TASKS, Probe.name, Probe)
+    monkeypatch.setitem(
+        EMBODIMENTS, ROBOT, lambda: aloha_viperx().model_copy(update={"name": ROBOT})
+    )
+    monkeypatch.setenv("BICOORD_CACHE", str(tmp_path / "cache"))
+    SEEN.clear()
+    Spy.bound.clear()
+    yield Probe.name
+    gymnasium.registry.pop(f"bicoord_drake/{Probe.name}-v0", None)  # if a make_env registered it
+
+
+def randomized_unseen(seed: int) -> Scene:
+    return Probe().sample_scene(seed).randomized("unseen")
+
+
+# --------------------------------------------------------------------------- the value
+def test_the_robot_is_given_once_either_way():
+    by_field = EpisodeSetup(task="jigsaw", seed=1, embodiment="aloha_viperx")
+    assert by_field.station.embodiment == "aloha_viperx"
+    with pytest.raises(ValidationError, match="unknown embodiment 'ur5'; choose one of: "):
+        EpisodeSetup(task="jigsaw", seed=1, embodiment="ur5")
+    with pytest.raises(ValidationError, match="unknown embodiment 'ur5'"):
+        EpisodeSetup(task="jigsaw", seed=1, station=StationConfig(embodiment="ur5"))
+
+
+def test_a_robot_in_the_station_settings_is_the_episodes_robot(probe):
+    setup = EpisodeSetup(task=probe, seed=1, station=StationConfig(embodiment=ROBOT))
+    assert setup.embodiment == ROBOT == setup.station.embodiment
+    setup = EpisodeSetup(task=probe, seed=1, embodiment=ROBOT)
+    assert setup.station.embodiment == ROBOT
+    with pytest.raises(ValidationError, match="differ: give the robot once"):
+        EpisodeSetup(
+            task=probe, seed=1, embodiment=ROBOT, station=StationConfig(embodiment="other")
+        )
+
+
+def test_copies_keep_every_other_setting_and_serialize_the_task_by_name(probe):
+    setup = EpisodeSetup(
+        task=Probe(), seed=3, randomize=True, split="unseen", embodiment=ROBOT
+    ).for_seed(4)
+    assert (setup.seed, setup.randomize, setup.split, setup.embodiment) == (
+        4,
+        True,
+        "unseen",
+        ROBOT,
+    )
+    assert not setup.without_cameras().station.render and setup.station.render
+    assert json.loads(setup.model_dump_json())["task"] == probe
+    assert setup.make_scene() == randomized_unseen(4)
+    with pytest.raises(ValidationError, match=r"\[0, 2\*\*32\)"):
+        setup.for_seed(2**32)
+
+
+# --------------------------------------------------------------------------- the paths
+def test_run_expert_builds_the_setups_scene_robot_and_station(probe):
+    station = StationConfig(control_rate=10.0, kp_scale=1.5, render=False)
+    setup = EpisodeSetup(
+        task=probe, seed=4, randomize=True, split="unseen", embodiment=ROBOT, station=station
+    )
+    result = gen.run_expert(setup)
+    assert result.success, result.reason
+    (seen,) = SEEN
+    assert seen["scene"] == result.scene == randomized_unseen(4) and seen["scene"].distractors
+    assert seen["robot"] == ROBOT and seen["station"] == station.model_copy(
+        update={"embodiment": ROBOT}
+    )
+    assert result.recorder.fps == 10.0 and result.instruction in Probe.instructions_unseen
+
+
+def test_assemble_reuses_the_simulation_only_for_the_same_scene_and_station(probe):
+    setup = EpisodeSetup(task=probe, seed=4, station=StationConfig(render=False))
+    first = assemble(setup)
+    assert assemble(setup, first).sim is first.sim
+    assert assemble(setup.for_seed(5), first).sim is not first.sim
+    slower = setup.replace(station=StationConfig(render=False, control_rate=10.0))
+    assert assemble(slower, first).sim is not first.sim
+
+
+def test_make_env_and_the_gymnasium_env_build_what_they_are_given(probe):
+    env = make_env(
+        probe, 4, randomize=True, split="unseen", fps=10.0, render=False, embodiment=ROBOT
+    )
+    assert env.scene == randomized_unseen(4) and env.embodiment == ROBOT
+    assert env.sim.station.embodiment.name == ROBOT and env.config.control_rate == 10.0
+    env.reset(5)  # another seed, the same settings
+    assert env.scene == randomized_unseen(5) and env.sim.station.embodiment.name == ROBOT
+    gym = gymnasium.make(
+        "bicoord_drake/jigsaw-v0",
+        render=False,
+        randomize=True,
+        split="unseen",
+        fps=10.0,
+        embodiment=ROBOT,
+        disable_env_checker=True,
+    )
+    inner = gym.unwrapped.bicoord_env
+    assert inner.embodiment == ROBOT and inner.scene.appearance.split == "unseen"
+    assert inner.config.control_rate == 10.0
+    assert gym.observation_space["observation.state"].shape == (inner.layout.state_size,)
+    with pytest.raises(ValueError, match="unknown embodiment 'ur5'; choose one of"):
+        make_env(probe, 4, render=False, embodiment="ur5")
+
+
+def test_generation_records_the_robot_in_the_file_manifest_and_directory(probe, tmp_path):
+    config = gen.GenerateConfig(
+        task=probe,
+        episodes=1,
+        out=str(tmp_path / "data"),
+        fps=10.0,
+        randomize=True,
+        embodiment=ROBOT,
+        render=False,
+        video=False,
+        workers=1,
+    )
+    assert config.config_name == ROBOT  # robots are kept apart
+    assert gen.default_config_name(True, ROBOT) == f"{ROBOT}_randomized"
+    assert gen.default_config_name(True) == "randomized"
+    summary = gen.generate(config)
+    assert summary.kept == 1 and summary.root == tmp_path / "data" / probe / ROBOT
+    (seen,) = SEEN  # generation draws from the seen split
+    assert seen["robot"] == ROBOT and seen["scene"] == Probe().sample_scene(0).randomized("seen")
+    assert seen["station"].control_rate == 10.0
+    episode = read_episode(summary.root / "data" / "episode0.hdf5", images=False)
+    assert episode.embodiment == ROBOT and episode.config["embodiment"] == ROBOT
+    assert episode.layout.action_size == episode.joint_action.shape[1] == 14
+    with h5py.File(episode.path) as f:
+        assert f["joint_action/left_arm"].shape == (episode.length, 6)
+    assert read_manifest(summary.root).config["embodiment"] == ROBOT
+
+
+def test_an_older_directory_without_a_recorded_robot_resumes(probe, tmp_path):
+    config = gen.GenerateConfig(
+        task=probe, episodes=1, out=str(tmp_path), render=False, video=False, workers=1
+    )
+    assert config.config_name == "default"
+    gen.generate(config)
+    manifest_path = tmp_path / probe / "default" / "manifest.json"
+    manifest = json.loads(manifest_path.read_text())
+    del manifest["config"]["embodiment"]  # as written before the robot was recorded
+    manifest_path.write_text(json.dumps(manifest))
+    again = gen.generate(config.model_copy(update={"episodes": 2}))
+    assert again.kept == 2
+    assert read_manifest(again.root).config["embodiment"] == "aloha_viperx"
+    other = config.model_copy(update={"embodiment": ROBOT})  # same directory, other robot
+    with pytest.raises(ValueError, match="different settings"):
+        gen.generate(other)
+
+
+def test_the_expert_check_runs_on_the_rollouts_episode(probe, tmp_path):
+    config = EvaluateConfig(
+        task=probe,
+        policy="tests.policies.dummy:Spy",
+        episodes=1,
+        randomize=True,
+        split="unseen",
+        fps=10.0,
+        embodiment=ROBOT,
+        render=False,
+        workers=1,
+        out=str(tmp_path / "eval"),
+    )
+    report = evaluate(config)
+    assert report.n == 1 and not report.skipped
+    (checked,) = SEEN  # the expert check's episode
+    (rolled,) = Spy.bound  # the rollout's
+    assert checked["scene"] == rolled["scene"] == randomized_unseen(100000)
+    assert checked["robot"] == rolled["setup"].embodiment == ROBOT
+    physics = {"render", "cameras"}
+    assert checked["station"].model_dump(exclude=physics) == rolled["station"].model_dump(
+        exclude=physics
+    )
+    assert rolled["station"].control_rate == 10.0
+    # the parallel path's worker checks the same episode
+    rollouts_setup = config.episode_setup(Probe(), 100000)
+    assert rollouts_setup.model_dump(exclude={"station"}) == rolled["setup"].model_dump(
+        exclude={"station"}
+    )
+    SEEN.clear()
+    from bicoord_drake.runner.evaluate_parallel import rollout_job
+
+    outcome = rollout_job(config, 100001, None, check=True, video=False)
+    assert outcome.verdict == {"ok": True, "reason": None}
+    assert SEEN[0]["scene"] == randomized_unseen(100001) and SEEN[0]["robot"] == ROBOT
+    assert Spy.bound[-1]["scene"] == SEEN[0]["scene"]
+
+
+def test_evaluation_settings_flow_into_one_setup():
+    config = EvaluateConfig(
+        task="jigsaw", policy="noop", resolution="64x48", depth=True, fps=10.0, split="seen"
+    )
+    setup = config.episode_setup("jigsaw", 7)
+    assert setup.station == StationConfig(
+        control_rate=10.0, cameras=CameraConfig(width=64, height=48, depth=True)
+    )
+    assert (setup.seed, setup.split, setup.randomize) == (7, "seen", False)
+    assert rollouts.ExpertCheck.for_config(setup.get_task(), config).setup.station.render is False
+    with pytest.raises(ValidationError, match="unknown embodiment 'ur5'"):
+        EvaluateConfig(task="jigsaw", policy="noop", embodiment="ur5")
+    with pytest.raises(ValidationError, match="unknown embodiment 'ur5'"):
+        gen.GenerateConfig(task="jigsaw", embodiment="ur5")
+
+
+def test_a_demonstration_of_another_robot_is_refused(probe, tmp_path):
+    config = gen.GenerateConfig(
+        task=probe, episodes=1, out=str(tmp_path), render=False, video=False, workers=1
+    )
+    root = gen.generate(config).root
+    env = make_env(probe, render=False, embodiment=ROBOT)
+    with pytest.raises(ValueError, match="recorded with embodiment 'aloha_viperx'.*--embodiment"):
+        env.reset(episode=root / "data" / "episode0.hdf5")
+    np.testing.assert_array_equal(env.reset()["joint_state"].shape, (14,))
