@@ -42,6 +42,17 @@ VARIANTS: dict[str, dict] = {
     "lagged 1/180 s": {"contact_approximation": "lagged", "time_step": 1 / 180},
     "lagged 1/150 s": {"contact_approximation": "lagged", "time_step": 1 / 150},
     "sap 1/180 s": {"time_step": 1 / 180},
+    "lagged 1/120 s": {"contact_approximation": "lagged", "time_step": 1 / 120},
+    "lagged 1/150 s + margin": {
+        "contact_approximation": "lagged",
+        "time_step": 1 / 150,
+        "hydroelastic_margin": 1e-4,
+    },
+    "lagged 1/120 s + margin": {
+        "contact_approximation": "lagged",
+        "time_step": 1 / 120,
+        "hydroelastic_margin": 1e-4,
+    },
 }
 
 
