@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 from pydrake.all import RigidTransform, Simulator
 
@@ -150,34 +152,44 @@ class Simulation:
 
     def finger_contacts(self) -> dict[str, set[str]]:
         """For each scene object, the sides ('left', 'right') whose fingers touch it now."""
-        st = self.station
-        fingers = {
-            int(st.plant.GetBodyByName(name, inst).index()): side
-            for side, inst in st.arms.items()
-            for name in ("left_finger", "right_finger")
-        }
-        return self._sides_touching(fingers)
+        return self.contacts()[1]
 
     def robot_contacts(self) -> dict[str, set[str]]:
         """For each scene object, the sides ('left', 'right') any of whose bodies (fingers, palm,
         wrist, links, base) touch it now."""
+        return self.contacts()[0]
+
+    def contacts(self) -> tuple[dict[str, set[str]], dict[str, set[str]]]:
+        """(robot contacts, finger contacts) of every scene object, from one pass over the
+        contact pairs (see :meth:`robot_contacts`, :meth:`finger_contacts`)."""
+        objects = self.station.object_bodies
+        robot: dict[str, set[str]] = {name: set() for name in objects}
+        fingers: dict[str, set[str]] = {name: set() for name in objects}
+        by_body, sides, finger_bodies = self._contact_bodies
+        for a, b in self.contact_pairs():
+            for body, other in ((a, b), (b, a)):
+                if body in sides and other in by_body:
+                    robot[by_body[other]].add(sides[body])
+                    if body in finger_bodies:
+                        fingers[by_body[other]].add(sides[body])
+        return robot, fingers
+
+    @cached_property
+    def _contact_bodies(self) -> tuple[dict[int, str], dict[int, str], frozenset[int]]:
+        """Body index -> object name, arm body index -> side, and the finger body indices."""
         st = self.station
-        bodies = {
+        by_body = {int(body.index()): name for name, body in st.object_bodies.items()}
+        sides = {
             int(index): side
             for side, inst in st.arms.items()
             for index in st.plant.GetBodyIndices(inst)
         }
-        return self._sides_touching(bodies)
-
-    def _sides_touching(self, robot_bodies: dict[int, str]) -> dict[str, set[str]]:
-        """Object name -> sides of the `robot_bodies` (body index -> side) in contact with it."""
-        by_body = {int(body.index()): name for name, body in self.station.object_bodies.items()}
-        touching: dict[str, set[str]] = {name: set() for name in self.station.object_bodies}
-        for a, b in self.contact_pairs():
-            for robot, other in ((a, b), (b, a)):
-                if robot in robot_bodies and other in by_body:
-                    touching[by_body[other]].add(robot_bodies[robot])
-        return touching
+        fingers = frozenset(
+            int(st.plant.GetBodyByName(name, inst).index())
+            for inst in st.arms.values()
+            for name in ("left_finger", "right_finger")
+        )
+        return by_body, sides, fingers
 
     def images(self, depth: bool = False) -> dict[str, np.ndarray]:
         """RGB (H, W, 3) uint8 per camera; with `depth`, also '<cam>_depth' (H, W) uint16 mm."""

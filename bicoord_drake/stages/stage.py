@@ -169,6 +169,7 @@ class WorldState:
         """
         station = sim.station
         plant, plant_context = station.plant, sim.plant_context
+        robot, fingers = sim.contacts()
         velocities = {}
         for name, body in station.object_bodies.items():
             V = plant.EvalBodySpatialVelocityInWorld(plant_context, body)
@@ -181,8 +182,8 @@ class WorldState:
             tcp_poses={side: sim.tcp_pose(side) for side in SIDES},
             joint_state=sim.joint_state(),
             action=np.asarray(action, dtype=float),
-            contacts=sim.robot_contacts(),
-            finger_contacts=sim.finger_contacts(),
+            contacts=robot,
+            finger_contacts=fingers,
             object_velocities=velocities,
             joint_positions=sim.joint_positions(),
             layout=station.layout,
