@@ -64,14 +64,14 @@ def parse_seeds(text: str) -> list[int]:
 def run_cell(task: str, variant: str, seeds: list[int]) -> list[dict]:
     """Run the expert of `task` in `variant` for `seeds` in this process; one record per seed."""
     from bicoord_drake.config import StationConfig
+    from bicoord_drake.episode_setup import EpisodeSetup
     from bicoord_drake.runner.generate import run_expert
-    from bicoord_drake.tasks import get_task
 
     config = StationConfig(render=False, **VARIANTS[variant])
     records = []
     for seed in seeds:
         cpu0 = time.process_time()
-        result = run_expert(get_task(task), seed, config)
+        result = run_expert(EpisodeSetup(task=task, seed=seed, station=config))
         frames = len(result.recorder) if result.recorder is not None else 0
         records.append(
             {

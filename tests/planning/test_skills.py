@@ -274,3 +274,44 @@ def test_carry_above_stops_over_the_goal_still_holding():
     assert "left" in ctx.model.held  # still held: nothing was released
     p = ctx.model.held_pose("left", ctx.q).translation()
     np.testing.assert_allclose(p, goal.translation() + [0, 0, 0.08], atol=0.003)
+
+
+def test_track_may_leave_a_contact_it_starts_in_but_never_press_deeper():
+    """A push can leave a finger pressed a fraction of a millimetre into the table (the
+    measured state the next move starts from): tracking away from it, or along it, is allowed;
+    pressing deeper into the table is not."""
+    scene = Scene(name="one", objects=(cube("a", 0.25, 0.1),))
+    ctx = sk.SkillContext(PlanningModel(scene))
+    home = ctx.model.tcp_pose(ctx.q, "right")
+
+    def lowered(dz: float, env_clearance: float) -> np.ndarray:
+        X = RigidTransform(home.rotation(), home.translation() - [0, 0, dz])
+        return sk.solve_tcp(ctx, "right", TcpTarget(X), env_clearance=env_clearance)
+
+    def depth(q6: np.ndarray) -> float:
+        """How deep (m) the arm at `q6` is in the table (negative: clear of it)."""
+        ctx.model.set_padding(ctx.clearance / 2, 0.0)
+        pairs = ctx.model.colliding_pairs(ctx.with_arm("right", q6), margin=0.05)
+        return -min(d for _, other, d in pairs if other == "table_top")
+
+    # Lower the TCP in joint space (extrapolating two IK solutions 1 cm apart, about 1.5 cm
+    # above the table) in 0.01 mm steps until the gripper is a fraction of a millimetre in.
+    a, b = lowered(0.14, 0.0), lowered(0.15, 0.0)
+    for t in np.arange(1.0, 4.0, 0.001):
+        q6 = a + t * (b - a)
+        if depth(q6) > 0:
+            break
+    assert 0 < depth(q6) < sk.tracking.START_CONTACT_DEPTH
+    ctx.q = ctx.with_arm("right", q6)
+    start = ctx.model.tcp_pose(ctx.q, "right")
+    R, p = start.rotation(), start.translation()
+
+    def line(dz: float):
+        return lambda s: RigidTransform(R, p + [0.0, 0.0, s * dz])
+
+    saved = ctx.q.copy()
+    sk.track(ctx, "right", line(0.05), 0.05, 0.0, label="up")
+    assert ctx.model.tcp_pose(ctx.q, "right").translation()[2] == pytest.approx(p[2] + 0.05)
+    ctx.q = saved
+    with pytest.raises(PlanningError, match="ik_infeasible|ik_collision|path_in_collision"):
+        sk.track(ctx, "right", line(-0.005), 0.005, 0.0, label="down")

@@ -26,6 +26,10 @@ TRACK_ROTATION = 1.2
 #: Cartesian skills: the largest joint step (rad) between two samples (more means the IK
 #: solution jumped to another branch).
 TRACK_MAX_STEP = 0.3
+#: Cartesian skills: how deep (m) the measured start may be in contact with the environment
+#: (a finger or link pressed into the table by the previous push) and still be tracked, as long
+#: as the path never presses deeper into what it touches at the start.
+START_CONTACT_DEPTH = 0.002
 
 
 def track(
@@ -51,13 +55,40 @@ def track(
     )
     q_other = ctx.arm_q(other)
     with ctx.model.ignoring(ignore):  # once: entering it costs a filter rebuild
+        ctx.model.set_padding(ctx.clearance / 2, 0.0)
+        start_depth = -min((d for _, _, d in ctx.model.colliding_pairs(ctx.q)), default=0.0)
+        if start_depth > START_CONTACT_DEPTH:
+            raise PlanningError(
+                "start_in_collision",
+                f"{label}: the {side} arm starts {start_depth * 1e3:.1f} mm deep",
+            )
         q6 = _track_samples(ctx, side, pose_at, duration, q_other, ignore, label)
         ctx.model.set_padding(ctx.clearance / 2, 0.0)
         q = [ctx.with_arm(side, x) for x in q6]
-        if not all(ctx.edge_free(a, b) for a, b in zip(q[:-1], q[1:], strict=True)):
+        if not _path_free(ctx, q):
             raise PlanningError("path_in_collision", f"{label}: the {side} path collides")
     ctx.q = q[-1].copy()
     return ArmPlan(side, q6, np.full(len(q6), ctx.opening[side]), label=label)
+
+
+def _path_free(ctx: SkillContext, q: Sequence[np.ndarray]) -> bool:
+    """Whether the sampled path `q` is collision-free (current padding), except for contacts
+    the measured start is already in: a pair touching at the start (at most
+    START_CONTACT_DEPTH deep) may stay in contact along the path, never deeper than it began."""
+    start = {(a, b): d for a, b, d in ctx.model.colliding_pairs(q[0])}
+    if any(d < -START_CONTACT_DEPTH for d in start.values()):
+        return False
+    for a, b in zip(q[:-1], q[1:], strict=True):
+        if ctx.edge_free(a, b):
+            continue
+        if not start:
+            return False
+        n = max(2, int(np.ceil(np.max(np.abs(b - a)) / 0.01)) + 1)
+        for s in np.linspace(0, 1, n):
+            for body, other, d in ctx.model.colliding_pairs(a + s * (b - a)):
+                if d < start.get((body, other), np.inf) - 1e-4:
+                    return False
+    return True
 
 
 def path_parameter(duration: float, dt: float) -> np.ndarray:
