@@ -7,7 +7,7 @@ from collections.abc import Iterator
 from functools import partial
 
 import numpy as np
-from pydrake.all import RigidTransform, RotationMatrix
+from pydrake.all import AngleAxis, RigidTransform, RotationMatrix
 
 from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose
@@ -339,9 +339,17 @@ def _spot_goal() -> RigidTransform:
 
 
 def _nest_goal(ctx: SkillContext, lower: str) -> RigidTransform:
-    """Upright pose a bowl is let go at to nest in `lower` (measured at the last sync)."""
-    p = ctx.model.object_pose(lower).translation()
-    return RigidTransform(RotationMatrix(), [p[0], p[1], p[2] + NEST_RISE + NEST_DROP])
+    """The pose a bowl is let go at to nest in `lower` (measured at the last sync): on
+    `lower`'s axis, NEST_RISE + NEST_DROP above it, tilted as `lower` is (a bowl nested a few
+    degrees off vertical takes the next one only along its own axis), no yaw."""
+    X = ctx.model.object_pose(lower)
+    axis = X.rotation().matrix()[:, 2]
+    tilt_axis = np.cross([0.0, 0.0, 1.0], axis)
+    sin, cos = np.linalg.norm(tilt_axis), axis[2]
+    R = RotationMatrix()
+    if sin > 1e-9:
+        R = RotationMatrix(AngleAxis(math.atan2(sin, cos), tilt_axis / sin))
+    return RigidTransform(R, X.translation() + (NEST_RISE + NEST_DROP) * axis)
 
 
 def _leave_then_enter(ctx: SkillContext, leaver: ArmPlan, placer: ArmPlan) -> Motion:
