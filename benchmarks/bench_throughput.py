@@ -1,7 +1,7 @@
 """Generation throughput: simulated seconds of kept demonstrations per wall second.
 
     python benchmarks/bench_throughput.py --tasks jigsaw,cook --episodes 4 --workers 1,2 \\
-        [--no-render-too] [--before REV] [--repeats 1] [--out benchmarks/bench_throughput.md]
+        [--render yes|no|both] [--before REV] [--repeats 1] [--out benchmarks/bench_throughput.md]
 
 Every measurement is one run of ``scripts/generate.py`` as a user runs it (a fresh process, so
 startup is included) on the same seeds: ``--seed`` upward until ``--episodes`` are kept. Its
@@ -13,7 +13,9 @@ with 2 workers it adds up to about twice the wall time).
 ``--before REV`` also measures another commit, checked out with ``git worktree`` into a
 temporary directory, interleaved with this checkout (same seeds, same background load): the
 "before" of a speed change. The 1-minute load average is recorded before every run; compare
-ratios within one run, not figures across machines or days.
+ratios within one run, not figures across machines or days. With ``--before`` a second table
+gives, per task and setting, the ratio after/before of the whole run's rate and of the physics
+phase alone (simulated seconds per worker second spent stepping the plant), and their medians.
 """
 
 from __future__ import annotations
@@ -109,6 +111,46 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def physics_rate(row: dict) -> float | None:
+    """Simulated seconds of the run's episodes per worker second of the physics phase."""
+    physics = row["split"].get("physics", 0.0)
+    return row["simulated"] / physics if physics > 0 and row["simulated"] > 0 else None
+
+
+def ratio_table(rows: list[dict], before: str | None) -> str:
+    """After/before ratios per (task, render, workers): whole run and physics phase."""
+    commits = list(dict.fromkeys(r["commit"] for r in rows))
+    if len(commits) != 2:
+        return ""
+    old, new = (before, next(c for c in commits if c != before)) if before else commits
+    by_key = {(r["commit"], r["task"], r["render"], r["workers"]): r for r in rows}
+    lines = [
+        f"After (`{new}`) / before (`{old}`):",
+        "",
+        "| task | render | workers | run rate ratio | physics rate ratio |",
+        "|---|---|---|---|---|",
+    ]
+    run_ratios, physics_ratios = [], []
+    for (commit, task, render, workers), r_new in by_key.items():
+        r_old = by_key.get((old, task, render, workers))
+        if commit != new or r_old is None or r_old["rate"] <= 0:
+            continue
+        run = r_new["rate"] / r_old["rate"]
+        p_new, p_old = physics_rate(r_new), physics_rate(r_old)
+        phys = p_new / p_old if p_new and p_old else None
+        run_ratios.append(run)
+        if phys:
+            physics_ratios.append(phys)
+        lines.append(
+            f"| {task} | {'yes' if render else 'no'} | {workers} | {run:.2f}x | "
+            + (f"{phys:.2f}x |" if phys else "- |")
+        )
+    if run_ratios:
+        med_p = f"{statistics.median(physics_ratios):.2f}x" if physics_ratios else "-"
+        lines.append(f"| **median** | | | **{statistics.median(run_ratios):.2f}x** | **{med_p}** |")
+    return "\n".join(lines)
+
+
 PHASE_ORDER = [
     "build",
     "planning",
@@ -125,12 +167,18 @@ PHASE_ORDER = [
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--tasks", default="jigsaw", help="comma-separated task names")
+    parser.add_argument("--tasks", default="jigsaw", help="'all' or comma-separated task names")
     parser.add_argument("--episodes", type=int, default=4, help="episodes kept per run")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", default="1,2", help="comma-separated worker counts")
     parser.add_argument("--repeats", type=int, default=1, help="runs per setting (median)")
-    parser.add_argument("--no-render-too", action="store_true", help="also measure --no-render")
+    parser.add_argument(
+        "--render",
+        choices=("yes", "no", "both"),
+        default="yes",
+        help="with cameras (yes), --no-render (no), or both",
+    )
+    parser.add_argument("--no-render-too", action="store_true", help="same as --render both")
     parser.add_argument("--before", help="also measure this git revision (the 'before')")
     parser.add_argument("--out", type=Path, help="markdown file to write (default: print)")
     args = parser.parse_args()
@@ -138,10 +186,16 @@ def main() -> None:
     trees = [ROOT]
     if args.before:
         trees.insert(0, checkout(args.before))
-    renders = [True, False] if args.no_render_too else [True]
+    mode = "both" if args.no_render_too else args.render
+    renders = {"yes": [True], "no": [False], "both": [True, False]}[mode]
+    tasks = args.tasks.split(",")
+    if args.tasks == "all":
+        from bicoord_drake.tasks import list_tasks
+
+        tasks = list(list_tasks())
     rows = []
     try:
-        for task in args.tasks.split(","):
+        for task in tasks:
             for render in renders:
                 for workers in (int(w) for w in args.workers.split(",")):
                     runs: dict[Path, list[dict]] = {tree: [] for tree in trees}
@@ -176,6 +230,8 @@ def main() -> None:
             "",
         ]
     )
+    if args.before:
+        text += "\n" + ratio_table(rows, revision(trees[0]) if trees[0].exists() else None) + "\n"
     if args.out:
         args.out.write_text(text)
     print(text)

@@ -1,0 +1,54 @@
+"""The throughput benchmark's before/after table: ratios of the run rate and the physics phase."""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_throughput.py"
+
+
+@pytest.fixture(scope="module")
+def bench():
+    spec = importlib.util.spec_from_file_location("bench_throughput", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["bench_throughput"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def _row(commit, task, wall, physics, simulated=20.0):
+    return {
+        "commit": commit,
+        "task": task,
+        "render": False,
+        "workers": 1,
+        "kept": 1,
+        "tried": 1,
+        "simulated": simulated,
+        "wall": wall,
+        "rate": simulated / wall,
+        "split": {"physics": physics, "planning": 2.0},
+        "load": 1.0,
+    }
+
+
+def test_ratio_table_gives_run_and_physics_ratios_and_their_medians(bench):
+    rows = [
+        _row("old", "a", wall=40.0, physics=30.0),
+        _row("new", "a", wall=20.0, physics=10.0),
+        _row("old", "b", wall=30.0, physics=20.0),
+        _row("new", "b", wall=30.0, physics=20.0),
+        _row("new", "c", wall=10.0, physics=5.0),  # no 'before' row: left out
+    ]
+    text = bench.ratio_table(rows, "old")
+    assert "| a | no | 1 | 2.00x | 3.00x |" in text
+    assert "| b | no | 1 | 1.00x | 1.00x |" in text
+    assert "| c |" not in text
+    assert "**1.50x** | **2.00x**" in text
+
+
+def test_physics_rate_needs_a_physics_phase(bench):
+    assert bench.physics_rate(_row("x", "a", wall=10.0, physics=4.0)) == pytest.approx(5.0)
+    assert bench.physics_rate({**_row("x", "a", 10.0, 0.0), "split": {}}) is None
