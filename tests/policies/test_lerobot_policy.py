@@ -243,8 +243,15 @@ def test_environment_state_from_the_live_simulation(tmp_path):
 
     with pytest.raises(ValueError, match=f"lacks {ENV}.*environment_state=True"):
         policy.act({"observation.state": np.zeros(14, np.float32), "task": "x"})
-    gym_obs = {"observation.state": np.zeros(14, np.float32), ENV: np.zeros(14, np.float32)}
-    assert policy.act(gym_obs).shape == (14,)
+    gymnasium = pytest.importorskip("gymnasium")
+    import bicoord_drake  # noqa: F401  (registers the ids)
+
+    gym_env = gymnasium.make(f"bicoord_drake/{STATE_TASK}-v0", render=False, environment_state=True)
+    gym_obs, _ = gym_env.reset(seed=100000)
+    policy.bind(gym_env)
+    policy.reset(gym_obs["task"])
+    assert np.array_equal(policy.batch(gym_obs)[ENV].numpy(), batch[ENV].numpy())
+    assert np.allclose(policy.act(gym_obs), action, atol=1e-5)  # the same scene, the same input
 
     swapped = _state_checkpoint(tmp_path / "swapped", feature_names(objects[::-1]))
     policy = load_policy(f"lerobot:{swapped}")
