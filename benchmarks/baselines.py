@@ -23,7 +23,7 @@ and ``--batch-size``. Everything runs one process at a time. Cost seen in the sm
 cores, load about 5): lerobot's default ACT (40 M parameters, chunks of 100) 4-8 s per training
 step at batch 4, so a CPU baseline needs a smaller one (``--train-args "act=--policy.dim_model=
 256 ..."``); Diffusion Policy with ``--policy.down_dims=[64,128,256]`` (5 M) 0.4-0.5 s per step,
-and with ``--policy.num_inference_steps=10`` about 2.5 min per 300-step rollout.
+and with ``--policy.num_inference_steps=10`` 2-5 min per 300-step rollout.
 """
 
 from __future__ import annotations
