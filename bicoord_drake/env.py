@@ -17,8 +17,11 @@ default ViperX pair).
 Observations (a dict): ``head_camera``, ``left_camera``, ``right_camera`` (H, W, 3) uint8 RGB
 (absent with ``render=False``; with ``depth=True`` also ``<cam>_depth`` (H, W) uint16 mm),
 ``joint_state`` (A,) measured ``[left q (n), left opening, right q (n), right opening]``,
-``left_endpose`` / ``right_endpose`` (7,) TCP xyz + quaternion wxyz in the world frame, and
-``instruction`` (one paraphrase of the task's instruction, from the *unseen* split by default).
+``left_endpose`` / ``right_endpose`` (7,) TCP xyz + quaternion wxyz in the world frame,
+``object_poses`` (privileged: name -> (7,) xyz + wxyz of every task object, distractors left
+out, in the order of ``observation.environment_state``, see
+:mod:`bicoord_drake.data.environment_state`) and ``instruction`` (one paraphrase of the
+task's instruction, from the *unseen* split by default).
 
 Actions, one per control period (PRODUCT.md: the station moves the joint targets linearly from the
 previous action to the new one over the period):
@@ -58,6 +61,7 @@ from typing import Any, Literal
 import numpy as np
 
 from bicoord_drake.config import CameraConfig, StationConfig, parse_resolution
+from bicoord_drake.data.environment_state import environment_state, state_objects
 from bicoord_drake.data.episode import Episode, read_episode
 from bicoord_drake.episode_setup import Assembly, EpisodeSetup, assemble
 from bicoord_drake.models.embodiment import SIDES, other_side
@@ -411,8 +415,21 @@ class Env:
         obs["joint_state"] = sim.joint_state()
         obs["left_endpose"] = sim.tcp_pose("left")
         obs["right_endpose"] = sim.tcp_pose("right")
+        poses = sim.object_poses()
+        obs["object_poses"] = {name: poses[name] for name in self.state_objects}
         obs["instruction"] = self.instruction
         return obs
+
+    @property
+    def state_objects(self) -> tuple[str, ...]:
+        """The objects of ``obs["object_poses"]`` and of the environment state, in its order
+        (:func:`bicoord_drake.data.environment_state.state_objects`)."""
+        return state_objects(self.scene)
+
+    def environment_state(self) -> np.ndarray:
+        """The current ``observation.environment_state`` (7 K,): the task objects' poses, laid
+        out as the LeRobot export's (:mod:`bicoord_drake.data.environment_state`)."""
+        return environment_state(self.sim.object_poses(), self.state_objects)
 
     def info(self) -> dict[str, Any]:
         """Stage completion, score so far, success and the step count."""

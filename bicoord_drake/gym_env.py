@@ -17,7 +17,10 @@ Spaces, keyed like the LeRobot export (:mod:`bicoord_drake.data.export`):
   opening, right n, right opening]`` (the robot's layout: A = 14 for the default ViperX pair);
   ``observation.endpose`` (14,) float32 both TCP poses (xyz + quaternion wxyz, left then
   right); ``observation.images.{head,left,right}`` (H, W, 3) uint8 RGB for the cameras that are
-  on; ``task`` (``Text``) the instruction.
+  on; ``task`` (``Text``) the instruction; with ``environment_state=True`` also
+  ``observation.environment_state`` (7 K,) float32, the K task objects' poses (xyz + wxyz,
+  the export's ``--environment-state`` layout, :mod:`bicoord_drake.data.environment_state`;
+  names in :attr:`BiCoordEnv.environment_state_names`).
 - action (``Box``): A joint targets and openings (``action_mode="qpos"``, the export's
   ``action``; bounds: the joint limits and [0, 1]) or 16 numbers of end poses
   (``action_mode="endpose"``: xyz, quaternion wxyz, opening per arm).
@@ -38,7 +41,8 @@ step limit (the task's, or ``step_limit=``) ended it. ``info`` is the environmen
 Keyword arguments of ``gymnasium.make``: ``render`` (cameras on/off; off is much faster),
 ``cameras`` (which of them are observed), ``resolution`` (``"WxH"``), ``randomize``,
 ``split``, ``seed``, ``action_mode``, ``fps``, ``step_limit``, ``data`` (demonstrations for
-stage resets), ``embodiment`` (the robot; default the ViperX pair).
+stage resets), ``embodiment`` (the robot; default the ViperX pair), ``environment_state``
+(privileged object poses in the observation; off by default).
 """
 
 from __future__ import annotations
@@ -52,6 +56,12 @@ from typing import Any
 import gymnasium
 import numpy as np
 from gymnasium import spaces
+
+from bicoord_drake.data.environment_state import (
+    ENVIRONMENT_STATE,
+    environment_state,
+    feature_names,
+)
 
 NAMESPACE = "bicoord_drake"
 VERSION = 0
@@ -133,6 +143,7 @@ class BiCoordEnv(gymnasium.Env):
         step_limit: int | None = None,
         data: str | Path | None = None,
         embodiment: str | None = None,
+        environment_state: bool = False,
     ) -> None:
         from bicoord_drake.config import (
             CAMERA_NAMES,
@@ -190,6 +201,12 @@ class BiCoordEnv(gymnasium.Env):
             data=data,
         )
         self.step_limit = self.bicoord_env.step_limit
+        #: The objects of ``observation.environment_state`` in the current scene (empty when it
+        #: is off).
+        self.state_objects: tuple[str, ...] = (
+            self.bicoord_env.state_objects if environment_state else ()
+        )
+        self.environment_state = bool(environment_state)
         self.observation_space = self._observation_space(int(width), int(height))
         self.action_space = self._action_space()
         self._seed: int | None = None  # the scene seed of the last reset
@@ -213,6 +230,11 @@ class BiCoordEnv(gymnasium.Env):
         items[ENDPOSE_KEY] = spaces.Box(
             np.tile(pose_low, 2), -np.tile(pose_low, 2), (2 * len(pose_low),), np.float32
         )
+        if getattr(self, "environment_state", False):
+            size = len(self.state_objects) * len(pose_low)
+            items[ENVIRONMENT_STATE] = spaces.Box(
+                np.tile(pose_low, size // 7), -np.tile(pose_low, size // 7), (size,), np.float32
+            )
         items[TASK_KEY] = spaces.Text(
             max(len(t) for t in texts), min_length=1, charset=frozenset(charset)
         )
@@ -295,8 +317,24 @@ class BiCoordEnv(gymnasium.Env):
         obs[ENDPOSE_KEY] = np.concatenate([raw["left_endpose"], raw["right_endpose"]]).astype(
             np.float32
         )
+        if self.environment_state:
+            objects = tuple(raw["object_poses"])
+            size = self.observation_space[ENVIRONMENT_STATE].shape[0]
+            if 7 * len(objects) != size:
+                raise ValueError(
+                    f"seed {self.bicoord_env.seed}: the scene has {len(objects)} task objects, "
+                    f"the observation space's {ENVIRONMENT_STATE} {size // 7}"
+                )
+            self.state_objects = objects  # jigsaw's names vary with the seed, not their count
+            obs[ENVIRONMENT_STATE] = environment_state(raw["object_poses"], objects, np.float32)
         obs[TASK_KEY] = str(raw["instruction"])
         return obs
+
+    @property
+    def environment_state_names(self) -> list[str]:
+        """The names of ``observation.environment_state`` for the current scene (as in the
+        export's meta; :attr:`state_objects` are its objects)."""
+        return feature_names(self.state_objects)
 
     def _info(self, raw: dict[str, Any]) -> dict[str, Any]:
         info = {k: list(v) if isinstance(v, list) else v for k, v in raw.items()}

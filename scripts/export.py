@@ -5,11 +5,15 @@ Examples:
     python scripts/export.py data --to lerobot --out lerobot/jigsaw              # codebase v3.0
     python scripts/export.py data/jigsaw --to lerobot --out lr21 --codebase v2.1
     python scripts/export.py data --to lerobot --out lr --dtype float64 --check
+    python scripts/export.py data --to lerobot --out lr_state --environment-state --no-images
 
 DATA_DIR holds episode files (searched recursively for *.hdf5), e.g. the --out of
 scripts/generate.py, all of one robot. Features: observation.state and action (the robot's
 joints and openings: 14 each for the ViperX pair), observation.endpose (both TCP poses),
 stage_index per frame, the three cameras as videos, the instruction as the task.
+--environment-state adds observation.environment_state, the task objects' poses (xyz + wxyz per
+object, in the scene's order; names in meta/info.json), the privileged state small policies
+train on; --no-images leaves the cameras out (needed for episodes generated with --no-render).
 v3.0 is written by lerobot's LeRobotDataset; v2.1 in lerobot's v2.1 layout. Needs the [lerobot]
 extra (see the README). --check loads the result with LeRobotDataset (a v2.1 export after
 converting it with lerobot's converter in a temporary directory) and compares it with the source.
@@ -45,6 +49,17 @@ def main(argv: list[str] | None = None) -> int:
         "--vcodec", default="libsvtav1", help="video codec (lerobot's default libsvtav1)"
     )
     parser.add_argument(
+        "--environment-state",
+        action="store_true",
+        help="add observation.environment_state: the task objects' poses (privileged state)",
+    )
+    parser.add_argument(
+        "--no-images",
+        dest="images",
+        action="store_false",
+        help="leave the camera videos out (a state-only dataset)",
+    )
+    parser.add_argument(
         "--check", action="store_true", help="load the export with lerobot and compare"
     )
     args = parser.parse_args(argv)
@@ -65,6 +80,8 @@ def main(argv: list[str] | None = None) -> int:
             codebase=args.codebase,
             dtype=args.dtype,
             vcodec=args.vcodec,
+            images=args.images,
+            environment_state=args.environment_state,
         )
     except (ImportError, FileExistsError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
@@ -80,7 +97,10 @@ def main(argv: list[str] | None = None) -> int:
         if result.codebase == "v2.1":
             root = export.convert_v21_to_v30(result.root, result.repo_id, work)
         dataset = export.load_lerobot(root, result.repo_id)
-        check = export.check_export(dataset, export.load_episodes(result.sources))
+        episodes = export.load_episodes(
+            result.sources, images=args.images, environment_state=args.environment_state
+        )
+        check = export.check_export(dataset, episodes)
     print(
         f"check: frame counts {'match' if all(a == b for a, b in check.frame_counts) else 'DIFFER'}"
         f"; exact: {', '.join(k for k, v in check.numeric_exact.items() if v) or 'none'}"

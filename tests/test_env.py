@@ -59,6 +59,10 @@ def test_observation_keys_and_shapes():
     assert obs["joint_state"].shape == (14,)
     assert obs["left_endpose"].shape == obs["right_endpose"].shape == (7,)
     assert obs["instruction"] in env.task.instructions("unseen")
+    poses = obs["object_poses"]  # the task objects, in the environment state's order
+    assert tuple(poses) == env.state_objects and len(poses) == 18
+    assert all(p.shape == (7,) for p in poses.values())
+    assert np.array_equal(np.concatenate(list(poses.values())), env.environment_state())
 
 
 def test_step_is_one_control_period_and_reports_stages(env):

@@ -139,3 +139,55 @@ def test_bad_arguments_are_refused():
         gymnasium.make(env_id(TASK), render=False, cameras=["head_camera"])
     with pytest.raises(ValueError, match="unknown cameras"):
         gymnasium.make(env_id(TASK), cameras=["top_camera"])
+
+
+def test_environment_state_has_the_exports_layout(tmp_path):
+    """At reset, the observation's object poses are the export's feature for the same scene:
+    one frame recorded from the environment's own simulation, exported, read back."""
+    from bicoord_drake.policies.lerobot_policy import preload_triton
+
+    preload_triton()  # earlier tests rendered (see its docstring)
+    pytest.importorskip("lerobot.datasets.lerobot_dataset")
+    from bicoord_drake.data import export
+    from bicoord_drake.data.environment_state import ENVIRONMENT_STATE, feature_names
+    from bicoord_drake.data.episode import (
+        EpisodeLayout,
+        EpisodeMeta,
+        EpisodeRecorder,
+        save_episode,
+    )
+
+    env = gymnasium.make(env_id(TASK), render=False, environment_state=True)
+    _check_env(env)
+    obs, _ = env.reset(seed=100003)
+    inner = env.unwrapped.bicoord_env
+    objects = inner.state_objects
+    assert objects == tuple(o.name for o in inner.scene.objects if not o.distractor)
+    assert env.unwrapped.environment_state_names == feature_names(objects)
+    space = env.observation_space[ENVIRONMENT_STATE]
+    assert space.shape == obs[ENVIRONMENT_STATE].shape == (7 * len(objects),)
+    assert space.contains(obs[ENVIRONMENT_STATE])
+    assert np.array_equal(obs[ENVIRONMENT_STATE], inner.environment_state().astype(np.float32))
+
+    recorder = EpisodeRecorder(fps=15, layout=inner.layout)
+    recorder.capture(inner.sim, inner.action)
+    meta = EpisodeMeta(
+        task=TASK,
+        seed=inner.seed,
+        instruction=inner.instruction,
+        embodiment=inner.embodiment,
+        success=False,
+        object_count=len(objects),
+        scene=inner.scene,
+    )
+    rows = [[0, 1, s.subgoal, s.left, s.right, s.score] for s in inner.stages[:1]]
+    rows[0][-1] = 1.0
+    save_episode(EpisodeLayout(tmp_path / "data", TASK, "t"), 0, recorder, rows, meta, video=False)
+    result = export.export_lerobot(
+        [tmp_path / "data"], tmp_path / "lr", images=False, environment_state=True
+    )
+    dataset = export.load_lerobot(result.root, result.repo_id)
+    assert dataset.meta.features[ENVIRONMENT_STATE]["names"] == feature_names(objects)
+    assert np.array_equal(dataset[0][ENVIRONMENT_STATE].numpy(), obs[ENVIRONMENT_STATE])
+    assert ENVIRONMENT_STATE not in gymnasium.make(env_id(TASK), render=False).observation_space
+    env.close()

@@ -14,7 +14,12 @@ pair; the dataset's ``robot_type`` is the embodiment)::
     action                     (A,)   commanded joint targets and gripper openings
     observation.endpose        (14,)  left TCP xyz + quaternion wxyz, then right
     stage_index                (1,)   int64, the BiCoord stage the frame belongs to
-    observation.images.{head,left,right}   videos (H, W, 3)
+    observation.images.{head,left,right}   videos (H, W, 3) (not with ``images=False``)
+    observation.environment_state  (7 K,)  with ``environment_state=True``: the poses (xyz +
+                               wxyz) of the scene's K task objects, from ``objects/<name>/pose``
+                               (:mod:`bicoord_drake.data.environment_state`: order and names,
+                               ``<object>_<field>`` or, where the episodes' object names
+                               differ (jigsaw), ``object_<i>_<field>``; in ``meta/info.json``)
     task                       the episode's instruction
 
 ``meta/bicoord_episodes.jsonl`` adds per episode its source file, seed and stage rows
@@ -36,6 +41,13 @@ from typing import Any
 
 import numpy as np
 
+from bicoord_drake.data.environment_state import (
+    ENVIRONMENT_STATE,
+    environment_state,
+    feature_names,
+    layout_names,
+    state_objects,
+)
 from bicoord_drake.data.episode import Episode, read_episode
 from bicoord_drake.data.readers import find_episode_files
 from bicoord_drake.models.embodiment import SIDES
@@ -130,9 +142,32 @@ class ExportResult:
 
 
 # --------------------------------------------------------------------------- features
-def lerobot_features(episode: Episode, dtype: str = "float32") -> dict[str, dict[str, Any]]:
+NUMERIC = ("observation.state", "action", "observation.endpose", "stage_index")
+"""The numeric features every export has (``observation.environment_state`` is optional)."""
+
+
+def episode_state_objects(episode: Episode) -> tuple[str, ...]:
+    """The objects of the episode's environment state (from its recorded scene), checked
+    against the poses it recorded; ValueError saying what is missing."""
+    scene = episode.scene
+    if scene is None:
+        raise ValueError(f"{episode.path}: no scene recorded; the environment state needs it")
+    objects = state_objects(scene)
+    missing = [n for n in objects if n not in episode.objects]
+    if missing:
+        raise ValueError(f"{episode.path}: no objects/<name>/pose recorded for {missing}")
+    return objects
+
+
+def lerobot_features(
+    episode: Episode,
+    dtype: str = "float32",
+    *,
+    images: bool = True,
+    environment_state: bool = False,
+) -> dict[str, dict[str, Any]]:
     """The LeRobot feature dictionary for episodes shaped like ``episode`` (its robot's action
-    layout, its cameras and image size)."""
+    layout, its cameras and image size; its task objects with `environment_state`)."""
     if dtype not in DTYPES:
         raise ValueError(f"unknown dtype {dtype!r}; choose one of {', '.join(DTYPES)}")
     layout = layout_of(episode.attrs["embodiment"])  # as Episode.layout
@@ -151,7 +186,10 @@ def lerobot_features(episode: Episode, dtype: str = "float32") -> dict[str, dict
         },
         "stage_index": {"dtype": "int64", "shape": (1,), "names": None},
     }
-    for cam in sorted(episode.rgb):
+    if environment_state:
+        names = feature_names(episode_state_objects(episode))
+        features[ENVIRONMENT_STATE] = {"dtype": dtype, "shape": (len(names),), "names": names}
+    for cam in sorted(episode.rgb) if images else ():
         if cam not in CAMERAS:
             raise ValueError(f"{episode.path}: unknown camera {cam!r}; known: {sorted(CAMERAS)}")
         h, w = episode.image(cam, 0).shape[:2]
@@ -163,9 +201,12 @@ def lerobot_features(episode: Episode, dtype: str = "float32") -> dict[str, dict
     return features
 
 
-def frame_values(episode: Episode, t: int, dtype: str = "float32") -> dict[str, np.ndarray]:
-    """The non-image feature values of frame ``t``."""
-    return {
+def frame_values(
+    episode: Episode, t: int, dtype: str = "float32", objects: tuple[str, ...] | None = None
+) -> dict[str, np.ndarray]:
+    """The non-image feature values of frame ``t`` (with the environment state of `objects`
+    if given)."""
+    values = {
         "observation.state": episode.joint_state[t].astype(dtype),
         "action": episode.joint_action[t].astype(dtype),
         "observation.endpose": np.concatenate(
@@ -173,12 +214,24 @@ def frame_values(episode: Episode, t: int, dtype: str = "float32") -> dict[str, 
         ).astype(dtype),
         "stage_index": np.array([episode.stage_index[t]], dtype=np.int64),
     }
+    if objects is not None:
+        poses = {name: episode.objects[name][t] for name in objects}
+        values[ENVIRONMENT_STATE] = environment_state(poses, objects, dtype)
+    return values
 
 
-def _frames(episode: Episode, dtype: str) -> Iterator[dict[str, Any]]:
+def _objects(episode: Episode, features: dict[str, Any]) -> tuple[str, ...] | None:
+    """The environment state's objects if `features` has it."""
+    return episode_state_objects(episode) if ENVIRONMENT_STATE in features else None
+
+
+def _frames(episode: Episode, features: dict[str, Any]) -> Iterator[dict[str, Any]]:
+    dtype = features["action"]["dtype"]
+    objects = _objects(episode, features)
+    cams = [c for c in sorted(episode.rgb) if CAMERAS[c] in features]
     for t in range(episode.length):
-        frame: dict[str, Any] = frame_values(episode, t, dtype)
-        for cam in sorted(episode.rgb):
+        frame: dict[str, Any] = frame_values(episode, t, dtype, objects)
+        for cam in cams:
             frame[CAMERAS[cam]] = episode.image(cam, t)
         yield frame
 
@@ -202,27 +255,39 @@ def _integer_fps(episode: Episode) -> int:
     return int(fps)
 
 
-def load_episodes(paths: Iterable[str | Path]) -> list[Episode]:
-    """Read every episode file under ``paths`` and check they can share one dataset."""
+def load_episodes(
+    paths: Iterable[str | Path], *, images: bool = True, environment_state: bool = False
+) -> list[Episode]:
+    """Read every episode file under ``paths`` and check they can share one dataset (with
+    `images`, the export's cameras; with `environment_state`, its task objects)."""
     files, errors = find_episode_files(paths)
     if errors:
         raise ValueError("; ".join(errors))
-    episodes = [read_episode(f) for f in files]
+    episodes = [read_episode(f, images=images) for f in files]
     if not episodes:
         raise ValueError("no episode files to export")
     first = episodes[0]
-    reference = lerobot_features(first)
+    options = {"images": images, "environment_state": environment_state}
+
+    def features(episode: Episode) -> dict[str, Any]:  # the state's names may vary (jigsaw)
+        out = lerobot_features(episode, **options)
+        if ENVIRONMENT_STATE in out:
+            out[ENVIRONMENT_STATE] = {**out[ENVIRONMENT_STATE], "names": None}
+        return out
+
+    reference = features(first)
     for episode in episodes:
-        if not episode.rgb:
+        if images and not episode.rgb:
             raise ValueError(
                 f"{episode.path}: no camera images (generated with --no-render?); "
-                "the LeRobot export needs them"
+                "export without them with images=False (--no-images)"
             )
         if _integer_fps(episode) != _integer_fps(first):
             raise ValueError(f"{episode.path}: fps {episode.fps} differs from {first.fps}")
-        if lerobot_features(episode) != reference:
+        if features(episode) != reference:
             raise ValueError(
-                f"{episode.path}: cameras, image sizes or embodiment differ from {first.path}"
+                f"{episode.path}: cameras, image sizes, embodiment or task objects differ from "
+                f"{first.path}"
             )
     return episodes
 
@@ -242,11 +307,15 @@ def export_lerobot(
     codebase: str = "v3.0",
     dtype: str = "float32",
     vcodec: str = "libsvtav1",
+    images: bool = True,
+    environment_state: bool = False,
 ) -> ExportResult:
     """Export the episodes under ``paths`` into a new LeRobot dataset directory ``out``.
 
     ``dtype`` float64 keeps the stored states, actions and poses bit-exact; lerobot hands
-    items out as float32 either way (what policies read).
+    items out as float32 either way (what policies read). ``images=False`` leaves the cameras
+    out (a state-only dataset; episodes generated without rendering need it);
+    ``environment_state`` adds ``observation.environment_state``, the task objects' poses.
     Raises ``FileExistsError`` if ``out`` exists, ``ValueError`` on bad input.
     """
     if codebase not in CODEBASES:
@@ -257,14 +326,20 @@ def export_lerobot(
     if out.exists():
         raise FileExistsError(f"{out} exists; remove it or choose another output directory")
     require_lerobot()
-    episodes = load_episodes(paths)
+    episodes = load_episodes(paths, images=images, environment_state=environment_state)
+    features = lerobot_features(
+        episodes[0], dtype, images=images, environment_state=environment_state
+    )
+    if environment_state:
+        names = layout_names([episode_state_objects(e) for e in episodes])
+        features[ENVIRONMENT_STATE] = {**features[ENVIRONMENT_STATE], "names": names}
     repo_id = repo_id or default_repo_id(episodes)
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(dir=out.parent, prefix=f".{out.name}.", suffix=".tmp"))
     root = staging / "dataset"
     try:
         writer = _write_v30 if codebase == "v3.0" else _write_v21
-        writer(episodes, root, repo_id, dtype, vcodec)
+        writer(episodes, root, repo_id, features, vcodec)
         _write_jsonl(root / EXTRAS_FILE, [_episode_extras(i, e) for i, e in enumerate(episodes)])
         root.rename(out)
     finally:
@@ -287,14 +362,18 @@ def _write_jsonl(path: Path, rows: Iterable[dict[str, Any]]) -> None:
 
 
 def _write_v30(
-    episodes: Sequence[Episode], root: Path, repo_id: str, dtype: str, vcodec: str
+    episodes: Sequence[Episode],
+    root: Path,
+    repo_id: str,
+    features: dict[str, dict[str, Any]],
+    vcodec: str,
 ) -> None:
     from lerobot.datasets.lerobot_dataset import LeRobotDataset
 
     dataset = LeRobotDataset.create(
         repo_id=repo_id,
         fps=_integer_fps(episodes[0]),
-        features=lerobot_features(episodes[0], dtype),
+        features=features,
         root=root,
         robot_type=episodes[0].attrs["embodiment"],
         use_videos=True,
@@ -302,7 +381,7 @@ def _write_v30(
     )
     try:
         for episode in episodes:
-            for frame in _frames(episode, dtype):
+            for frame in _frames(episode, features):
                 dataset.add_frame({**frame, "task": episode.instruction})
             # lerobot stores a (1,)-shaped feature as a scalar column and hands each (1,) array
             # to int(), which numpy >= 2.3 refuses: give it the scalars it stores.
@@ -314,7 +393,11 @@ def _write_v30(
 
 
 def _write_v21(
-    episodes: Sequence[Episode], root: Path, repo_id: str, dtype: str, vcodec: str
+    episodes: Sequence[Episode],
+    root: Path,
+    repo_id: str,
+    features: dict[str, dict[str, Any]],
+    vcodec: str,
 ) -> None:
     """The v2.1 layout: one parquet file and one MP4 per camera per episode, JSON-lines meta."""
     import datasets
@@ -324,7 +407,9 @@ def _write_v21(
     from PIL import Image
 
     fps = _integer_fps(episodes[0])
-    features = {**lerobot_features(episodes[0], dtype), **DEFAULT_FEATURES}
+    dtype = features["action"]["dtype"]
+    features = {**features, **DEFAULT_FEATURES}
+    numeric = [k for k in (*NUMERIC, ENVIRONMENT_STATE) if k in features]
     video_keys = [k for k, f in features.items() if f["dtype"] == "video"]
     table_features = {k: f for k, f in features.items() if f["dtype"] != "video"}
     hf_features = get_hf_features_from_features(table_features)
@@ -334,10 +419,9 @@ def _write_v21(
     for index, episode in enumerate(episodes):
         task_index = tasks.setdefault(episode.instruction, len(tasks))
         T = episode.length
-        columns: dict[str, Any] = {
-            k: np.stack([frame_values(episode, t, dtype)[k] for t in range(T)])
-            for k in ("observation.state", "action", "observation.endpose", "stage_index")
-        }
+        objects = _objects(episode, features)
+        values = [frame_values(episode, t, dtype, objects) for t in range(T)]
+        columns: dict[str, Any] = {k: np.stack([v[k] for v in values]) for k in numeric}
         columns["timestamp"] = (np.arange(T) / fps).astype(np.float32).reshape(T, 1)
         columns["frame_index"] = np.arange(T, dtype=np.int64).reshape(T, 1)
         columns["episode_index"] = np.full((T, 1), index, dtype=np.int64)
@@ -356,6 +440,8 @@ def _write_v21(
         with tempfile.TemporaryDirectory(dir=root) as frames_dir:
             for cam in sorted(episode.rgb):
                 key = CAMERAS[cam]
+                if key not in features:
+                    continue
                 cam_dir = Path(frames_dir) / key
                 cam_dir.mkdir()
                 frame_paths[key] = []
@@ -451,7 +537,7 @@ def check_export(
     Numeric features are compared in full; images on ``images_per_episode`` evenly spaced frames
     per episode (all frames if None).
     """
-    numeric = ("observation.state", "action", "observation.endpose", "stage_index")
+    numeric = tuple(k for k in (*NUMERIC, ENVIRONMENT_STATE) if k in dataset.meta.features)
     dtype = dataset.meta.features["action"]["dtype"]
     # read the arrow columns (datasets' numpy formatter imports a torchvision API gone in 0.25+)
     table = dataset.hf_dataset.data
@@ -473,7 +559,8 @@ def check_export(
                 exact[key] = False
             continue
         order = rows[np.argsort(columns["frame_index"].reshape(-1)[rows])]
-        source = [frame_values(episode, t, dtype) for t in range(episode.length)]
+        state_of = episode_state_objects(episode) if ENVIRONMENT_STATE in numeric else None
+        source = [frame_values(episode, t, dtype, state_of) for t in range(episode.length)]
         for key in numeric:
             want = np.stack([s[key] for s in source])
             got = columns[key][order].reshape(want.shape)
@@ -487,6 +574,8 @@ def check_export(
         for t in sorted({int(round(p)) for p in picks}):
             item = dataset[int(order[t])]
             for cam in sorted(episode.rgb):
+                if CAMERAS[cam] not in dataset.meta.features:
+                    continue
                 got = np.asarray(item[CAMERAS[cam]]).transpose(1, 2, 0) * 255.0
                 errors.append(float(np.mean(np.abs(got - episode.image(cam, t)))))
     return ExportCheck(

@@ -3,7 +3,9 @@
 A policy is any object with ``act(obs) -> action`` and, optionally, ``reset(instruction)``
 (called at the start of every rollout) and ``bind(env)`` (called after ``env.reset()``, before
 ``reset``; a *privileged* hook the built-ins use to read the demonstration or the simulator -
-a learned policy should not need it). Observations and actions are those of
+a learned policy should not need it; the LeRobot adapter uses it only to check that the
+scene's task objects are the ones its ``observation.environment_state`` was trained on).
+Observations and actions are those of
 :mod:`bicoord_drake.env`.
 
 Load one with :func:`load_policy`:

@@ -14,7 +14,14 @@ and only the features it was trained with: ``observation.state`` (the measured j
 as the robot's layout has: 14 for the ViperX pair),
 ``observation.endpose`` (both TCP poses), ``observation.images.{head,left,right}`` as float CHW
 tensors in [0, 1], resized (bilinear, antialiased) to the size in its config, and the
-instruction as ``task``. Its ``select_action`` runs its action queue (chunks, temporal
+instruction as ``task``; a state-based checkpoint trained on an export with
+``--environment-state`` also gets ``observation.environment_state``, the task objects' poses
+computed from the live simulation by the export's own function
+(:mod:`bicoord_drake.data.environment_state`). Its names (object order) are read from the
+training dataset's ``meta/info.json`` (found through the checkpoint's ``train_config.json``)
+and checked against the environment's scene: at ``bind(env)`` and on every observation of
+:mod:`bicoord_drake.env` (its ``object_poses``). Where the dataset is gone, only the size is
+checked (with a warning). Its ``select_action`` runs its action queue (chunks, temporal
 ensembling) and ``reset`` empties it at the start of every rollout. Observations of
 :mod:`bicoord_drake.env` and of the Gymnasium environment (:mod:`bicoord_drake.gym_env`, already
 keyed by those names) are both accepted.
@@ -33,14 +40,23 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import sys
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from bicoord_drake.data.environment_state import (
+    ENVIRONMENT_STATE,
+    POSE_SIZE,
+    environment_state,
+    mismatch,
+    objects_of,
+)
 from bicoord_drake.models.embodiment import SIDES
-from bicoord_drake.models.layout import POSE_SIZE, layout_of
+from bicoord_drake.models.layout import layout_of
 from bicoord_drake.models.robots import EMBODIMENTS
 from bicoord_drake.policies import PolicyLoadError
 
@@ -64,6 +80,7 @@ IMAGE_FEATURES = {
 OFFERED = {
     STATE: "(A,)",
     ENDPOSE: str(ENDPOSE_SHAPE),
+    ENVIRONMENT_STATE: "(7 K,) (the K task objects' poses)",
     **{key: "(3, H, W)" for key in IMAGE_FEATURES.values()},
 }
 _CHECKPOINT_FILES = ("config.json", "model.safetensors")
@@ -171,6 +188,8 @@ def check_features(config: Any, where: str = "this checkpoint") -> None:
             problems.append(f"{key} has shape {shape}, the environment's is {offered_shapes[key]}")
         elif key == ENDPOSE and shape != ENDPOSE_SHAPE:
             problems.append(f"{key} has shape {shape}, the environment's is {OFFERED[key]}")
+        elif key == ENVIRONMENT_STATE and (len(shape) != 1 or not shape[0] or shape[0] % POSE_SIZE):
+            problems.append(f"{key} has shape {shape}, the environment's is {OFFERED[key]}")
         elif key in IMAGE_FEATURES.values() and (len(shape) != 3 or shape[0] != 3):
             problems.append(f"{key} has shape {shape}, expected (3, H, W) RGB")
     if missing or problems:
@@ -184,6 +203,59 @@ def check_features(config: Any, where: str = "this checkpoint") -> None:
             f"{'; '.join(text)}. The environment offers: {offered} (images at any size, "
             "resized to the policy's)."
         )
+
+
+def dataset_info(checkpoint: Path) -> dict[str, Any] | None:
+    """The ``meta/info.json`` of the dataset the checkpoint was trained on (its
+    ``train_config.json`` names it: ``dataset.root``, else the LeRobot cache's ``repo_id``), or
+    None when it cannot be found."""
+    try:
+        train = json.loads((checkpoint / "train_config.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    dataset = train.get("dataset") or {}
+    roots = []
+    if dataset.get("root"):
+        roots.append(Path(dataset["root"]).expanduser())
+    if dataset.get("repo_id"):
+        home = os.environ.get("HF_LEROBOT_HOME")
+        cache = Path(home) if home else Path.home() / ".cache" / "huggingface" / "lerobot"
+        roots.append(cache / str(dataset["repo_id"]))
+    for root in roots:
+        try:
+            return json.loads((root / "meta" / "info.json").read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+    return None
+
+
+def trained_state_objects(checkpoint: Path, size: int) -> tuple[str, ...] | None:
+    """The objects of the checkpoint's ``observation.environment_state`` (from its dataset's
+    feature names), or None with a warning when the dataset cannot be found;
+    PolicyLoadError when the names do not describe `size` numbers of object poses."""
+    info = dataset_info(checkpoint)
+    names = (((info or {}).get("features") or {}).get(ENVIRONMENT_STATE) or {}).get("names")
+    if not names:
+        warnings.warn(
+            f"lerobot policy {checkpoint}: the training dataset's meta/info.json (named by "
+            f"train_config.json) is not found, so the object order of {ENVIRONMENT_STATE} "
+            "cannot be checked against the environment's, only its size",
+            stacklevel=3,
+        )
+        return None
+    try:
+        objects = objects_of(names)
+    except ValueError as exc:
+        raise PolicyLoadError(
+            f"lerobot policy {checkpoint}: the dataset's {ENVIRONMENT_STATE} names are not a "
+            f"BiCoord object-pose layout ({exc})"
+        ) from None
+    if len(names) != size:
+        raise PolicyLoadError(
+            f"lerobot policy {checkpoint}: the dataset names {len(names)} numbers of "
+            f"{ENVIRONMENT_STATE}, the policy takes {size}"
+        )
+    return objects
 
 
 def _step_names(pipeline_file: Path) -> set[str]:
@@ -256,12 +328,38 @@ class LeRobotPolicy:
         action = (config.output_features or {}).get("action")
         self.action_size = int(np.prod(action.shape)) if action is not None else None
         self.instruction = ""
+        #: The objects of the environment state the policy was trained on, in its order (None:
+        #: unknown, only the size is checked; empty: the policy does not take it).
+        self.state_objects: tuple[str, ...] | None = ()
+        if ENVIRONMENT_STATE in self.inputs:
+            size = int(np.prod(self.inputs[ENVIRONMENT_STATE][1]))
+            self.state_objects = trained_state_objects(self.path, size)
         self.policy.eval()
 
     def __repr__(self) -> str:
         return f"LeRobotPolicy({self.type}, {str(self.path)!r})"
 
     # ---------------------------------------------------------------- policy interface
+    def bind(self, env: Any) -> None:
+        """Check that `env` (:class:`bicoord_drake.env.Env` or the Gymnasium environment)
+        provides the environment state the policy was trained on, object by object; called by
+        the evaluation after every reset."""
+        objects = getattr(getattr(env, "unwrapped", env), "state_objects", None)
+        if objects:
+            self.check_state_objects(tuple(objects))
+
+    def check_state_objects(self, objects: tuple[str, ...]) -> None:
+        """ValueError unless `objects` (the environment state's, in order) are the ones the
+        policy was trained on (when it takes the environment state and they are known; only
+        their count for a positional layout, see :func:`~bicoord_drake.data.
+        environment_state.mismatch`)."""
+        problem = mismatch(self.state_objects, objects) if self.state_objects else None
+        if problem:
+            raise ValueError(
+                f"lerobot policy {self.path}: {ENVIRONMENT_STATE} of this scene is not the one "
+                f"it was trained on: {problem}"
+            )
+
     def reset(self, instruction: str) -> None:
         """A new rollout: empty the action queue, remember the instruction."""
         self.instruction = str(instruction)
@@ -286,10 +384,16 @@ class LeRobotPolicy:
         available = self._features(obs)
         missing = [key for key in self.inputs if key not in available]
         if missing:
+            hints = ["images need rendering on and the camera in the environment"]
+            if ENVIRONMENT_STATE in missing:
+                hints.append(
+                    f"{ENVIRONMENT_STATE} needs gymnasium.make(..., environment_state=True) or "
+                    "a bicoord_drake.env observation (its object_poses)"
+                )
             raise ValueError(
                 f"lerobot policy {self.path}: the observation lacks {', '.join(missing)} (it has "
                 f"{', '.join(sorted(available)) or 'nothing the policy can use'}); "
-                "images need rendering on and the camera in the environment"
+                + "; ".join(hints)
             )
         batch: dict[str, Any] = {}
         for key, (kind, shape) in self.inputs.items():
@@ -308,10 +412,14 @@ class LeRobotPolicy:
         batch["task"] = [str(task)]
         return batch
 
-    @staticmethod
-    def _features(obs: dict[str, Any]) -> dict[str, Any]:
+    def _features(self, obs: dict[str, Any]) -> dict[str, Any]:
         """The LeRobot features found in an observation of either environment."""
         out = {k: v for k, v in obs.items() if k in OFFERED}
+        poses = obs.get("object_poses")
+        if ENVIRONMENT_STATE in self.inputs and ENVIRONMENT_STATE not in out and poses:
+            objects = tuple(poses)
+            self.check_state_objects(objects)
+            out[ENVIRONMENT_STATE] = environment_state(poses, objects)
         if STATE not in out and "joint_state" in obs:
             out[STATE] = obs["joint_state"]
         if ENDPOSE not in out and "left_endpose" in obs and "right_endpose" in obs:

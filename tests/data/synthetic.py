@@ -52,7 +52,9 @@ def episode(length: int, seed: int) -> tuple[EpisodeRecorder, list[list]]:
             joint_state=action + rng.normal(0.0, 1e-3, 14),
             left_endpose=[-0.3 + 0.1 * s, 0.3, 0.9, 1, 0, 0, 0],
             right_endpose=[0.3 - 0.05 * s, 0.3, 0.9 + 0.02 * s, 0, 1, 0, 0],
-            object_poses={o.name: [0.1 * s, 0.0, 0.8, 1, 0, 0, 0] for o in scene.objects},
+            object_poses={
+                o.name: [0.1 * s, 0.05 * i, 0.8, 1, 0, 0, 0] for i, o in enumerate(scene.objects)
+            },
             images={c: image(c, t) for c in CAMS},
             intrinsic_cv=dict.fromkeys(CAMS, K),
             extrinsic_cv=dict.fromkeys(CAMS, E),

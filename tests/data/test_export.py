@@ -121,3 +121,44 @@ def test_cli_exports_and_checks(source, tmp_path, capsys):
     assert "exact: observation.state, action, observation.endpose, stage_index" in out
     assert main(args) == 1
     assert "exists" in capsys.readouterr().err
+
+
+# ------------------------------------------------------------------ environment state
+def test_environment_state_is_the_task_objects_poses(source, tmp_path):
+    from bicoord_drake.data.environment_state import ENVIRONMENT_STATE, feature_names
+
+    episodes = export.load_episodes([source], images=False, environment_state=True)
+    objects = ("red_cube", "green_cube", "blue_cube", "bowl")  # the demo scene's order
+    result = export.export_lerobot(
+        [source], tmp_path / "lr", dtype="float64", images=False, environment_state=True
+    )
+    info = json.loads((result.root / "meta/info.json").read_text())
+    feature = info["features"][ENVIRONMENT_STATE]
+    assert feature["shape"] == [28] and feature["names"] == feature_names(objects)
+    assert feature["names"][:8] == [
+        *(f"red_cube_{f}" for f in "x y z qw qx qy qz".split()),
+        "green_cube_x",
+    ]
+    assert not any(k.startswith("observation.images") for k in info["features"])
+    dataset = export.load_lerobot(result.root, result.repo_id)
+    check = export.check_export(dataset, episodes)
+    assert check.ok and check.numeric_exact[ENVIRONMENT_STATE] and check.images_compared == 0
+    for episode_index, t in [(0, 0), (0, 11), (1, 4)]:
+        item = dataset[12 * episode_index + t]
+        want = np.concatenate([episodes[episode_index].objects[n][t] for n in objects])
+        assert np.allclose(item[ENVIRONMENT_STATE].numpy(), want, atol=1e-7)
+    assert np.allclose(dataset[11][ENVIRONMENT_STATE].numpy()[:3], [0.1, 0.0, 0.8])
+    assert np.allclose(dataset[11][ENVIRONMENT_STATE].numpy()[7:10], [0.1, 0.05, 0.8])
+
+
+def test_environment_state_in_v21_and_the_cli(source, tmp_path, capsys):
+    main = load_script("export").main
+    out = tmp_path / "cli"
+    args = [str(source), "--to", "lerobot", "--out", str(out), "--codebase", "v2.1"]
+    assert main([*args, "--environment-state", "--no-images", "--check"]) == 0
+    assert "exact: observation.state, action, observation.endpose, stage_index, " in (
+        capsys.readouterr().out
+    )
+    info = json.loads((out / "meta/info.json").read_text())
+    assert info["features"]["observation.environment_state"]["shape"] == [28]
+    assert info["total_videos"] == 0

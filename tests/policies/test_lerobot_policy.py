@@ -52,11 +52,11 @@ def _lerobot():
     return torch, FeatureType, PolicyFeature, ACTConfig
 
 
-def _act_config(inputs):
+def _act_config(inputs, action=14):
     _, FeatureType, PolicyFeature, ACTConfig = _lerobot()
     return ACTConfig(
         input_features={k: PolicyFeature(getattr(FeatureType, t), s) for k, (t, s) in inputs},
-        output_features={"action": PolicyFeature(FeatureType.ACTION, (14,))},
+        output_features={"action": PolicyFeature(FeatureType.ACTION, (action,))},
         device="cpu",
         chunk_size=4,
         n_action_steps=2,
@@ -143,7 +143,7 @@ def test_a_camera_the_environment_does_not_render_is_named(checkpoint):
                 ("observation.state", ("STATE", (14,))),
                 ("observation.environment_state", ("ENV", (9,))),
             ],
-            ["observation.environment_state (9,)", "does not provide"],
+            ["observation.environment_state has shape (9,)", "(7 K,)"],
         ),
         (
             [("observation.state", ("STATE", (7,))), (HEAD, ("VISUAL", (3, 24, 32)))],
@@ -179,3 +179,89 @@ def test_loads_after_a_camera_rendered(checkpoint):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.strip().endswith("(14,)")
+
+
+# ------------------------------------------------------------------ environment state
+STATE_TASK = "balance_roller"
+
+
+def _state_checkpoint(root, names):
+    """A tiny state-based ACT (state + environment state) in the lerobot-train layout, its
+    train_config.json naming a dataset whose meta/info.json has the environment state `names`
+    (None: no dataset)."""
+    import json
+
+    torch, *_ = _lerobot()
+    from lerobot.policies.act.modeling_act import ACTPolicy
+    from lerobot.policies.factory import make_pre_post_processors
+
+    size = 14  # balance_roller: roller and block
+    config = _act_config([("observation.state", ("STATE", (14,))), (ENV, ("ENV", (size,)))])
+    torch.manual_seed(0)
+    stats = {
+        "observation.state": {"mean": torch.zeros(14), "std": torch.ones(14)},
+        ENV: {"mean": torch.zeros(size), "std": torch.ones(size)},
+        "action": {"mean": torch.zeros(14), "std": torch.full((14,), 0.1)},
+    }
+    pre, post = make_pre_post_processors(config, dataset_stats=stats)
+    model_dir = root / "checkpoints" / "last" / "pretrained_model"
+    for saved in (ACTPolicy(config), pre, post):
+        saved.save_pretrained(model_dir)
+    dataset = root / "dataset"
+    if names is not None:
+        (dataset / "meta").mkdir(parents=True)
+        info = {"features": {ENV: {"dtype": "float32", "shape": [size], "names": names}}}
+        (dataset / "meta" / "info.json").write_text(json.dumps(info))
+    train = {"dataset": {"repo_id": "bicoord_drake/x", "root": str(dataset)}}
+    (model_dir / "train_config.json").write_text(json.dumps(train))
+    return root
+
+
+ENV = "observation.environment_state"
+
+
+def test_environment_state_from_the_live_simulation(tmp_path):
+    """The adapter computes the environment state from the simulation with the export's
+    layout, checks the trained object order and names what a Gymnasium observation lacks."""
+    from bicoord_drake import make_env
+    from bicoord_drake.data.environment_state import feature_names
+
+    env = make_env(STATE_TASK, render=False)
+    obs = env.reset()
+    objects = env.state_objects
+    assert list(obs["object_poses"]) == list(objects) == ["roller", "block"]
+    ckpt = _state_checkpoint(tmp_path / "ok", feature_names(objects))
+    policy = load_policy(f"lerobot:{ckpt}")
+    assert policy.state_objects == objects
+    policy.bind(env)
+    policy.reset(env.instruction)
+    batch = policy.batch(obs)
+    assert np.array_equal(batch[ENV].numpy()[0], env.environment_state().astype(np.float32))
+    action = policy.act(obs)
+    assert action.shape == (14,) and np.isfinite(action).all()
+    obs, _ = env.step(action)
+
+    with pytest.raises(ValueError, match=f"lacks {ENV}.*environment_state=True"):
+        policy.act({"observation.state": np.zeros(14, np.float32), "task": "x"})
+    gymnasium = pytest.importorskip("gymnasium")
+    import bicoord_drake  # noqa: F401  (registers the ids)
+
+    gym_env = gymnasium.make(f"bicoord_drake/{STATE_TASK}-v0", render=False, environment_state=True)
+    gym_obs, _ = gym_env.reset(seed=100000)
+    policy.bind(gym_env)
+    policy.reset(gym_obs["task"])
+    assert np.array_equal(policy.batch(gym_obs)[ENV].numpy(), batch[ENV].numpy())
+    assert np.allclose(policy.act(gym_obs), action, atol=1e-5)  # the same scene, the same input
+
+    swapped = _state_checkpoint(tmp_path / "swapped", feature_names(objects[::-1]))
+    policy = load_policy(f"lerobot:{swapped}")
+    with pytest.raises(ValueError, match="same objects in another order"):
+        policy.bind(env)
+    with pytest.raises(ValueError, match="same objects in another order"):
+        policy.act(obs)
+
+    with pytest.warns(UserWarning, match="cannot be checked"):
+        unknown = load_policy(f"lerobot:{_state_checkpoint(tmp_path / 'nodata', None)}")
+    assert unknown.state_objects is None
+    unknown.bind(env)
+    assert unknown.act(obs).shape == (14,)

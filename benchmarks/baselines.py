@@ -1,0 +1,390 @@
+"""Baselines: ACT and Diffusion Policy trained with ``lerobot-train``, scored by the benchmark.
+
+    python benchmarks/baselines.py --data data --tasks balance_roller,jigsaw --demos 50 \\
+        --policies act,diffusion --steps 20000 --eval-episodes 50 \\
+        --work baselines_work --out benchmarks/baselines.md
+
+For every task: the first ``--demos`` demonstrations of the task under ``--data`` (a directory
+of generated episodes, e.g. ``scripts/generate.py --no-render`` output) are exported state-based
+(``scripts/export.py --environment-state --no-images``: ``observation.state`` and
+``observation.environment_state``, the task objects' poses); each policy is trained on that
+dataset with ``lerobot-train`` (no training code here; the exact command is recorded) and
+evaluated with ``scripts/evaluate.py --policy lerobot:DIR --no-render --split unseen`` on
+``--eval-episodes`` evaluation seeds from ``100000 * (1 + --eval-seed)`` upward (disjoint from
+the generation seeds; seeds whose expert fails are skipped and reported). Each (task, policy)
+result goes to ``<work>/results.jsonl`` (a rerun skips the results already there, ``--force``
+redoes them) and ``--out`` is rewritten from all of them: SR, SSR, TL, per-stage completion,
+training steps, time and final loss, the machine, the date, the exact commands, and the paper's
+single-task Diffusion Policy numbers (image-based, GPU, RoboTwin 2.0 settings) beside ours.
+
+Training runs on the CPU with lerobot's default policy configuration plus
+``--train-args POLICY=ARGS`` (e.g. ``--train-args "diffusion=--policy.down_dims=[128,256,512]"``)
+and ``--batch-size``. Everything runs one process at a time. Cost seen in the smoke run (2 shared
+cores, load about 5): lerobot's default ACT (40 M parameters, chunks of 100) 4-8 s per training
+step at batch 4, so a CPU baseline needs a smaller one (``--train-args "act=--policy.dim_model=
+256 ..."``); Diffusion Policy with ``--policy.down_dims=[64,128,256]`` (5 M) 0.4-0.5 s per step,
+and with ``--policy.num_inference_steps=10`` 2-5 min per 300-step rollout.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+POLICIES = ("act", "diffusion")
+#: Arguments every training run gets besides the dataset, the policy type and the output.
+COMMON_TRAIN_ARGS = (
+    "--policy.device=cpu",
+    "--policy.push_to_hub=false",
+    "--num_workers=0",
+    "--eval_freq=0",
+    "--wandb.enable=false",
+)
+#: Per policy type: what a state-only CPU run needs beyond lerobot's defaults.
+POLICY_TRAIN_ARGS = {
+    "act": ("--policy.pretrained_backbone_weights=null",),
+    "diffusion": (),
+}
+#: The paper's single-task Diffusion Policy (Table 2): SR, SSR in percent (image-based, trained
+#: with RoboTwin 2.0's configuration on GPUs, 100 rollouts).
+PAPER_DP = {
+    "balance_roller": (34.0, 67.0),
+    "build_bridge": (68.0, 69.5),
+    "build_tower_with_blocks": (0.0, 1.5),
+    "clean_table": (0.0, 28.5),
+    "collect_pens": (1.0, 46.8),
+    "cook": (8.0, 31.2),
+    "divide_block_tower": (7.0, 28.9),
+    "exchange_mics": (58.0, 77.0),
+    "exchange_pots": (90.0, 93.5),
+    "extract_bottom_block_to_top": (80.0, 80.5),
+    "fetch_block_with_roller": (4.0, 52.0),
+    "handover_block_with_bowls": (1.0, 49.5),
+    "jigsaw": (0.0, 0.8),
+    "match_blocks_with_signs": (2.0, 16.0),
+    "place_plate_and_cup": (71.0, 89.2),
+    "put_objects_cabinet": (67.0, 81.0),
+    "stack_bowls": (21.0, 41.3),
+    "sweep_block": (83.0, 83.0),
+}
+_LOSS = re.compile(r"\bloss:([0-9.eE+-]+)")
+
+
+# --------------------------------------------------------------------------- environment
+def subprocess_env() -> dict[str, str]:
+    """This checkout first on PYTHONPATH, no network, no wandb."""
+    path = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
+    return {**os.environ, "PYTHONPATH": path, "HF_HUB_OFFLINE": "1", "WANDB_MODE": "disabled"}
+
+
+def machine() -> str:
+    """CPU model, cores, Python, torch and lerobot versions."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    versions = []
+    for package in ("torch", "lerobot"):
+        try:
+            from importlib.metadata import version
+
+            versions.append(f"{package} {version(package)}")
+        except Exception:
+            versions.append(f"{package} ?")
+    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, " + ", ".join(
+        versions
+    )
+
+
+def shown(command: list[str]) -> str:
+    """`command` as recorded: this Python as ``python``, lerobot-train by its name."""
+    names = {sys.executable: "python", shutil.which("lerobot-train"): "lerobot-train"}
+    return shlex.join(names.get(part, part) for part in command)
+
+
+def run(command: list[str], log: Path) -> tuple[str, float]:
+    """Run `command` (output to `log` as well); returns (stdout, seconds). RuntimeError with
+    the log's tail if it fails."""
+    log.parent.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    out = subprocess.run(command, capture_output=True, text=True, env=subprocess_env(), cwd=ROOT)
+    seconds = time.perf_counter() - start
+    log.write_text(f"$ {shlex.join(command)}\n{out.stdout}\n--- stderr ---\n{out.stderr}")
+    if out.returncode != 0:
+        raise RuntimeError(
+            f"{shlex.join(command[:4])} ... failed; see {log}:\n{out.stderr[-2000:]}"
+        )
+    return out.stdout, seconds
+
+
+# --------------------------------------------------------------------------- one task
+def export_command(files: list[Path], dataset: Path) -> list[str]:
+    """scripts/export.py for a state-based dataset of `files`."""
+    return [
+        sys.executable,
+        "scripts/export.py",
+        *map(str, files),
+        "--to",
+        "lerobot",
+        "--out",
+        str(dataset),
+        "--environment-state",
+        "--no-images",
+    ]
+
+
+def train_command(
+    policy: str, task: str, dataset: Path, output: Path, args: argparse.Namespace
+) -> list[str]:
+    """The lerobot-train command of one policy."""
+    train = shutil.which("lerobot-train") or "lerobot-train"
+    return [
+        train,
+        f"--dataset.repo_id=bicoord_drake/{task}",
+        f"--dataset.root={dataset}",
+        f"--policy.type={policy}",
+        *COMMON_TRAIN_ARGS,
+        *POLICY_TRAIN_ARGS[policy],
+        f"--steps={args.steps}",
+        f"--batch_size={args.batch_size}",
+        f"--save_freq={args.steps}",
+        f"--log_freq={max(1, min(200, args.steps // 10))}",
+        f"--seed={args.train_seed}",
+        *shlex.split(args.train_args.get(policy, "")),
+        f"--output_dir={output}",
+    ]
+
+
+def evaluate_command(task: str, checkpoint: Path, out: Path, args: argparse.Namespace) -> list[str]:
+    """scripts/evaluate.py on unseen-split evaluation seeds, states only."""
+    return [
+        sys.executable,
+        "scripts/evaluate.py",
+        "--task",
+        task,
+        "--policy",
+        f"lerobot:{checkpoint}",
+        "--episodes",
+        str(args.eval_episodes),
+        "--seed",
+        str(args.eval_seed),
+        "--split",
+        "unseen",
+        "--no-render",
+        "--workers",
+        str(args.eval_workers),
+        "--json",
+        "--out",
+        str(out),
+    ]
+
+
+def demonstrations(data: Path, task: str, count: int) -> list[Path]:
+    """The first `count` episode files of `task` under `data`."""
+    from bicoord_drake.runner.rollouts import find_episodes
+
+    files = find_episodes(data, task)
+    if len(files) < count:
+        raise ValueError(f"{data}: {len(files)} {task} demonstrations, {count} asked for")
+    return files[:count]
+
+
+def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) -> list[dict]:
+    """Export, train and evaluate every policy of `args` on `task`; returns the new results."""
+    work = Path(args.work) / task
+    dataset = work / f"dataset_{args.demos}"
+    files = demonstrations(Path(args.data), task, args.demos)
+    export = export_command(files, dataset)
+    todo = [p for p in args.policies if (task, p) not in done]
+    if not todo:
+        return []
+    if not dataset.exists():
+        print(f"[{task}] export {len(files)} demonstrations", flush=True)
+        run(export, work / "logs" / "export.log")
+    results = []
+    for policy in todo:
+        output = work / f"{policy}_{args.demos}demos_{args.steps}steps"
+        if output.exists():
+            shutil.rmtree(output)  # lerobot-train refuses an existing directory
+        train = train_command(policy, task, dataset, output, args)
+        print(f"[{task}] train {policy}: {args.steps} steps", flush=True)
+        _, train_seconds = run(train, work / "logs" / f"train_{policy}.log")
+        log = (work / "logs" / f"train_{policy}.log").read_text()
+        losses = _LOSS.findall(log)
+        evaluate = evaluate_command(task, output, work / "eval", args)
+        print(f"[{task}] evaluate {policy}: {args.eval_episodes} rollouts", flush=True)
+        stdout, eval_seconds = run(evaluate, work / "logs" / f"evaluate_{policy}.log")
+        report = json.loads(stdout)
+        errors = [r["error"] for r in report["rollouts"] if r.get("error")]
+        results.append(
+            {
+                "task": task,
+                "policy": policy,
+                "demos": len(files),
+                "steps": args.steps,
+                "batch_size": args.batch_size,
+                "train_seconds": round(train_seconds, 1),
+                "final_loss": float(losses[-1]) if losses else None,
+                "eval_seconds": round(eval_seconds, 1),
+                "n": report["n"],
+                "SR": report["SR"],
+                "SSR": report["SSR"],
+                "TL": report["TL"],
+                "stages": [[s["subgoal"], s["completed"]] for s in report["stages"]],
+                "skipped": len(report["skipped"]),
+                "errors": errors[:3],
+                "commands": {
+                    "export": shown(export),
+                    "train": shown(train),
+                    "evaluate": shown(evaluate),
+                },
+                "machine": machine(),
+                "date": f"{datetime.now(UTC):%Y-%m-%d %H:%M} UTC",
+            }
+        )
+        print(
+            f"[{task}] {policy}: SR {100 * report['SR']:.1f} %, SSR {100 * report['SSR']:.1f} %",
+            flush=True,
+        )
+    return results
+
+
+# --------------------------------------------------------------------------- the table
+def _pct(value: float | None) -> str:
+    return "-" if value is None else f"{100 * value:.1f}"
+
+
+def markdown(results: list[dict[str, Any]], command: str) -> str:
+    """The baselines table, its settings and the exact commands of every row."""
+    lines = [
+        "# Baselines: ACT and Diffusion Policy trained with lerobot-train",
+        "",
+        f"Written by `{command}` from `results.jsonl` of its work directory.",
+        "State-based (inputs `observation.state` and `observation.environment_state`, the task "
+        "objects' poses; no images), trained on the CPU with `lerobot-train` (lerobot's "
+        "default configuration of each policy plus the arguments in the commands below), "
+        "scored with `scripts/evaluate.py` on unseen-split evaluation seeds (from 100000 up; "
+        "seeds whose expert fails are skipped). SR, SSR in percent; TL in control steps of the "
+        "successful rollouts; per-stage completion: the share of rollouts in which each stage "
+        "counted. Paper DP: the paper's single-task Diffusion Policy (image-based, GPU, "
+        "RoboTwin 2.0 settings, 100 rollouts), for reference only: the inputs differ.",
+        "",
+        "| task | policy | demos | train steps | train time | final loss | rollouts | SR | SSR "
+        "| TL | per-stage completion | paper DP SR / SSR | machine | date |",
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---|---|",
+    ]
+    for r in results:
+        stages = "; ".join(f"{name} {_pct(c)}" for name, c in r["stages"])
+        paper = PAPER_DP.get(r["task"])
+        paper_text = f"{paper[0]:.1f} / {paper[1]:.1f}" if paper else "-"
+        loss = "-" if r["final_loss"] is None else f"{r['final_loss']:.3f}"
+        lines.append(
+            f"| {r['task']} | {r['policy']} | {r['demos']} | {r['steps']} | "
+            f"{r['train_seconds'] / 60:.1f} min | {loss} | {r['n']} | {_pct(r['SR'])} | "
+            f"{_pct(r['SSR'])} | {r['TL'] if r['TL'] is not None else '-'} | {stages} | "
+            f"{paper_text} | {r['machine']} | {r['date']} |"
+        )
+    lines += ["", "## Commands", ""]
+    for r in results:
+        lines += [f"### {r['task']}, {r['policy']}", "", "```bash"]
+        lines += [r["commands"][k] for k in ("export", "train", "evaluate")]
+        lines += ["```", ""]
+        if r["errors"]:
+            lines += [f"Rollout errors (first {len(r['errors'])}): {r['errors']}", ""]
+    return "\n".join(lines)
+
+
+def read_results(path: Path) -> list[dict[str, Any]]:
+    if not path.is_file():
+        return []
+    return [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+
+
+# --------------------------------------------------------------------------- CLI
+def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n")[0],
+        epilog=__doc__.split("\n", 2)[2],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--data", required=True, help="generated episodes (searched recursively)")
+    parser.add_argument("--tasks", required=True, help="comma-separated task names")
+    parser.add_argument("--demos", type=int, default=50, help="demonstrations per task")
+    parser.add_argument(
+        "--policies", default="act,diffusion", help=f"comma list of {', '.join(POLICIES)}"
+    )
+    parser.add_argument("--steps", type=int, default=20000, help="training steps")
+    parser.add_argument("--batch-size", type=int, default=8, help="training batch size")
+    parser.add_argument("--train-seed", type=int, default=1000, help="lerobot-train --seed")
+    parser.add_argument(
+        "--train-args",
+        action="append",
+        default=[],
+        metavar="POLICY=ARGS",
+        help="extra lerobot-train arguments for one policy type (repeatable)",
+    )
+    parser.add_argument("--eval-episodes", type=int, default=50, help="rollouts per policy")
+    parser.add_argument("--eval-seed", type=int, default=0, help="scripts/evaluate.py --seed")
+    parser.add_argument("--eval-workers", type=int, default=1, help="scripts/evaluate.py --workers")
+    parser.add_argument("--work", required=True, help="datasets, checkpoints, logs, results")
+    parser.add_argument("--out", required=True, help="the Markdown table to (re)write")
+    parser.add_argument("--force", action="store_true", help="redo results already in --work")
+    args = parser.parse_args(argv)
+    args.tasks = [t for t in args.tasks.split(",") if t]
+    args.policies = [p for p in args.policies.split(",") if p]
+    unknown = sorted(set(args.policies) - set(POLICIES))
+    if unknown:
+        parser.error(f"unknown policies {unknown}; choose from {', '.join(POLICIES)}")
+    extra: dict[str, str] = {}
+    for item in args.train_args:
+        policy, sep, value = item.partition("=")
+        if not sep or policy not in POLICIES:
+            parser.error(f"--train-args {item!r}: expected POLICY=ARGS with POLICY in {POLICIES}")
+        extra[policy] = f"{extra.get(policy, '')} {value}".strip()
+    args.train_args = extra
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    if shutil.which("lerobot-train") is None:
+        print(
+            "error: lerobot-train is not on PATH (see README: Train and evaluate)", file=sys.stderr
+        )
+        return 1
+    results_file = Path(args.work) / "results.jsonl"
+    results_file.parent.mkdir(parents=True, exist_ok=True)
+    previous = [] if args.force else read_results(results_file)
+    key = (args.demos, args.steps)
+    done = {(r["task"], r["policy"]) for r in previous if (r["demos"], r["steps"]) == key}
+    for task in args.tasks:
+        for result in run_task(task, args, done):
+            with open(results_file, "a", encoding="utf-8") as fh:
+                fh.write(json.dumps(result) + "\n")
+    command = "python benchmarks/baselines.py " + shlex.join(sys.argv[1:] if argv is None else argv)
+    latest = {
+        (r["task"], r["policy"], r["demos"], r["steps"]): r for r in read_results(results_file)
+    }
+    Path(args.out).write_text(markdown(list(latest.values()), command) + "\n")
+    print(f"wrote {args.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,81 @@
+"""benchmarks/baselines.py: its commands and its table (the run itself is smoke-tested by hand;
+the loop it automates is tests/policies/test_lerobot_loop.py)."""
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "baselines.py"
+
+
+@pytest.fixture(scope="module")
+def baselines():
+    spec = importlib.util.spec_from_file_location("baselines", SCRIPT)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["baselines"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_commands_are_state_based_and_carry_the_extra_arguments(baselines, tmp_path):
+    args = baselines.parse_args(
+        ["--data", "d", "--tasks", "jigsaw,cook", "--work", "w", "--out", "o.md"]
+        + ["--steps", "100", "--train-args", "diffusion=--policy.horizon=8"]
+    )
+    assert args.tasks == ["jigsaw", "cook"] and args.policies == ["act", "diffusion"]
+    export = baselines.export_command([tmp_path / "e0.hdf5"], tmp_path / "ds")
+    assert export[-2:] == ["--environment-state", "--no-images"]
+    train = baselines.train_command("diffusion", "jigsaw", tmp_path / "ds", tmp_path / "out", args)
+    assert "--policy.type=diffusion" in train and "--policy.horizon=8" in train
+    assert "--steps=100" in train and "--policy.device=cpu" in train
+    assert train[-1] == f"--output_dir={tmp_path / 'out'}"
+    act = baselines.train_command("act", "jigsaw", tmp_path / "ds", tmp_path / "out", args)
+    assert "--policy.horizon=8" not in act
+    evaluate = baselines.evaluate_command("jigsaw", tmp_path / "out", tmp_path / "ev", args)
+    assert ["--split", "unseen"] == evaluate[evaluate.index("--split") :][:2]
+    assert "--no-render" in evaluate and f"lerobot:{tmp_path / 'out'}" in evaluate
+    assert baselines.shown([sys.executable, "x"]) == "python x"
+    with pytest.raises(SystemExit):
+        baselines.parse_args(
+            ["--data", "d", "--tasks", "t", "--work", "w", "--out", "o"] + ["--policies", "pi0"]
+        )
+
+
+def test_table_rows(baselines):
+    result = {
+        "task": "balance_roller",
+        "policy": "act",
+        "demos": 50,
+        "steps": 1000,
+        "train_seconds": 600.0,
+        "final_loss": 0.1234,
+        "n": 50,
+        "SR": 0.1,
+        "SSR": 0.35,
+        "TL": 140.5,
+        "stages": [["lift", 0.6], ["balance", 0.1]],
+        "errors": [],
+        "commands": {"export": "python e", "train": "lerobot-train t", "evaluate": "python v"},
+        "machine": "cpu, 2 cores",
+        "date": "2026-11-26 09:00 UTC",
+    }
+    text = baselines.markdown([result], "python benchmarks/baselines.py ...")
+    row = next(line for line in text.splitlines() if line.startswith("| balance_roller"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[:12] == [
+        "balance_roller",
+        "act",
+        "50",
+        "1000",
+        "10.0 min",
+        "0.123",
+        "50",
+        "10.0",
+        "35.0",
+        "140.5",
+        "lift 60.0; balance 10.0",
+        "34.0 / 67.0",
+    ]
+    assert "lerobot-train t" in text
