@@ -23,7 +23,7 @@ from bicoord_drake.models.scene import demo_scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import arm_base, grasp_candidates
 from bicoord_drake.planning.throwing import throw_release
-from bicoord_drake.planning.timing import ARM_SLICES, JointLimits, rendezvous, time_path
+from bicoord_drake.planning.timing import JointLimits, rendezvous, time_path
 
 
 def random_paths(limits: JointLimits, k: int, count: int, seed: int) -> list[np.ndarray]:
@@ -35,7 +35,7 @@ def random_paths(limits: JointLimits, k: int, count: int, seed: int) -> list[np.
 def make_cases(calls: int) -> dict[str, tuple[Callable[[int], object], int]]:
     emb = get_embodiment("aloha_viperx")
     limits = JointLimits.from_embodiment(emb)
-    arm = limits.select(ARM_SLICES["left"])
+    arm = limits.arm("left")
     cases: dict[str, tuple[Callable[[int], object], int]] = {}
 
     def ruckig_1dof(i: int) -> object:

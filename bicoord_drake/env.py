@@ -456,11 +456,11 @@ class _EndposeIK:
     """TCP pose (xyz + wxyz) -> one arm's joint angles, nearest to a seed."""
 
     def __init__(self, embodiment) -> None:
-        from bicoord_drake.planning.ik import BimanualIK, closed_form_applies
+        from bicoord_drake.planning.ik import BimanualIK, closed_form_applies, has_closed_form
         from bicoord_drake.planning.model import PlanningModel
 
         self.model = PlanningModel(Scene(), embodiment)
-        self.closed_form = closed_form_applies(self.model)
+        self.closed_form = has_closed_form(self.model) and closed_form_applies(self.model)
         self._nlp = None if self.closed_form else BimanualIK(self.model, analytic=False)
 
     def solve(self, side: str, pose: np.ndarray, seed: np.ndarray) -> np.ndarray | None:
@@ -477,16 +477,16 @@ class _EndposeIK:
             if not sols:
                 return None
             return min(sols, key=lambda s: float(np.sum((s - seed) ** 2)))
-        q12 = self.model.home.copy()
-        q12[self.model.side_slice(side)] = seed
+        q_both = self.model.home.copy()
+        q_both[self.model.side_slice(side)] = seed
         other = other_side(side)
         try:
             out = self._nlp.solve(
                 {side: TcpTarget(X_WT)},
-                q_fixed={other: q12[self.model.side_slice(other)]},
+                q_fixed={other: q_both[self.model.side_slice(other)]},
                 clearance=0.0,
                 env_clearance=0.0,
-                seed=q12,
+                seed=q_both,
                 restarts=2,
             )
         except PlanningError:

@@ -145,6 +145,19 @@ class GripperSpec(BaseModel):
         return (finger_position - self.finger_min) / (self.finger_max - self.finger_min)
 
 
+class WristFlip(BaseModel):
+    """A roll-pitch-roll wrist whose parts are symmetric about the pitch axis: turning both
+    rolls by half a turn and negating the pitch gives the same TCP pose with the same arm
+    geometry (the ViperX's forearm roll, wrist angle and wrist rotate). Indices within one
+    arm's joints."""
+
+    model_config = ConfigDict(frozen=True)
+
+    first_roll: int = Field(ge=0)
+    pitch: int = Field(ge=0)
+    second_roll: int = Field(ge=0)
+
+
 class ArmSpec(BaseModel):
     """A serial arm: base link, links, its revolute joints in order (any number), and a gripper
     on the last link."""
@@ -194,6 +207,20 @@ class Embodiment(BaseModel):
         "face the same way, so a home in the arm's own vertical plane is mirror-symmetric)"
     )
     home_opening: float = Field(1.0, ge=0, le=1)
+    closed_form_ik: Literal["spherical_wrist_6r"] | None = Field(
+        None,
+        description="a closed-form IK the planner may use as a fast path: 'spherical_wrist_6r' "
+        "(six joints - z, y, y, x, y, x - with a spherical wrist, as the ViperX); None: "
+        "numerical IK only",
+    )
+    reach_pose: tuple[tuple[float, ...], tuple[float, ...]] | None = Field(
+        None,
+        description="(left arm angles, right arm angles) of a pose leaning over the table, for "
+        "snapshots (scripts/render.py --pose reach); None: snapshots use home",
+    )
+    wrist_flip: WristFlip | None = Field(
+        None, description="a symmetric roll-pitch-roll wrist (a second branch of every pose)"
+    )
 
     @model_validator(mode="after")
     def _home_valid(self) -> Embodiment:
@@ -202,6 +229,15 @@ class Embodiment(BaseModel):
         q = np.asarray(self.home)
         if np.any(q < self.arm.lower) or np.any(q > self.arm.upper):
             raise ValueError("home configuration is outside the joint limits")
+        return self
+
+    @model_validator(mode="after")
+    def _wrist_flip_valid(self) -> Embodiment:
+        n = len(self.arm.joints)
+        if self.reach_pose is not None and any(len(q) != n for q in self.reach_pose):
+            raise ValueError(f"reach_pose must give {n} joint angles per arm")
+        if self.wrist_flip is not None and max(self.wrist_flip.model_dump().values()) >= n:
+            raise ValueError(f"wrist_flip joint indices must be below {n}")
         return self
 
     @property
@@ -618,4 +654,8 @@ def aloha_viperx() -> Embodiment:
         left_base=Pose(xyz=(-0.25, -0.42, 0.75), rpy=(0, 0, half_pi)),
         right_base=Pose(xyz=(0.25, -0.42, 0.75), rpy=(0, 0, half_pi)),
         home=(0.0, -0.96, 1.16, 0.0, 0.4, 0.0),
+        closed_form_ik="spherical_wrist_6r",
+        # the right arm mirrors the waist, the forearm roll and the wrist rotation
+        reach_pose=((-0.35, 0.05, 0.35, 0.0, 1.0, 0.0), (0.35, 0.05, 0.35, 0.0, 1.0, 0.0)),
+        wrist_flip=WristFlip(first_roll=3, pitch=4, second_roll=5),
     )

@@ -1,6 +1,7 @@
 """Bimanual inverse kinematics with inter-arm and environment clearance.
 
-Both arms are solved in one nonlinear program over ``q12`` (fingers fixed at the model's
+Both arms are solved in one nonlinear program over ``q = [left n, right n]`` (the model's
+planning configuration; fingers fixed at the model's
 openings): TCP position within ``pos_tol`` per axis, orientation within ``rot_tol`` (or only the
 approach axis, gripper x, when ``free_axis``), a minimum distance ``clearance`` between the two
 arms (and what they hold), a minimum distance ``env_clearance`` between each arm and the table,
@@ -9,9 +10,11 @@ per call (a handover brings the grippers within 2 cm; transport wants a margin).
 
 Order of work:
 
-1. Closed form (arms with a spherical wrist, checked once per model): every exact branch of
-   each arm (up to 8), combinations sorted by the cost; the first that meets both clearances is
-   the answer. This is exact and takes about a millisecond.
+1. Closed form, when the embodiment declares one (``Embodiment.closed_form_ik``, e.g. the
+   ViperX's 6-joint spherical wrist; checked once per model): every exact branch of each arm
+   (up to 8), combinations sorted by the cost; the first that meets both clearances is the
+   answer. This is exact and takes about a millisecond. Other arms (the 7-joint Panda) start
+   at step 2.
 2. Otherwise the two-stage solve of the planning measurements note: a pose-only program (the
    arms decouple; it converges from the nominal pose), then the full program seeded from that
    answer (or from the closed-form branches). Seeds: the caller's ``seed`` (e.g. the previous
@@ -24,7 +27,7 @@ a failure raises :class:`PlanningError` naming the constraint that failed ('ik_u
 position or orientation out of reach; 'ik_collision': which clearance, between which bodies).
 
 >>> ik = BimanualIK(PlanningModel(demo_scene("cubes")))                # doctest: +SKIP
->>> q12 = ik.solve({"left": TcpTarget(X_WL), "right": TcpTarget(X_WR)}, clearance=0.03)
+>>> q = ik.solve({"left": TcpTarget(X_WL), "right": TcpTarget(X_WR)}, clearance=0.03)
 """
 
 from __future__ import annotations
@@ -94,12 +97,14 @@ class BimanualIK:
     ) -> None:
         """`nominal` (default: home) is the pose the cost pulls toward; `weights` weigh that
         cost per joint; `analytic` uses closed-form branches as exact candidates and seeds
-        when the arm has a spherical wrist; `solver` is "snopt" (IPOPT as fallback) or
+        when the embodiment declares a closed form; `solver` is "snopt" (IPOPT as fallback) or
         "ipopt"."""
         self.model = model
         self.nominal = model.home.copy() if nominal is None else np.asarray(nominal, float)
-        self.weights = np.ones(12) if weights is None else np.asarray(weights, dtype=float)
-        self.analytic = analytic and closed_form_applies(model)
+        self.weights = (
+            np.ones(model.num_joints) if weights is None else np.asarray(weights, dtype=float)
+        )
+        self.analytic = analytic and has_closed_form(model) and closed_form_applies(model)
         self._snopt = SnoptSolver()
         self._ipopt = IpoptSolver()
         self._use_snopt = solver == "snopt" and self._snopt.available() and self._snopt.enabled()
@@ -127,9 +132,9 @@ class BimanualIK:
         q_fixed: Mapping[str, np.ndarray] | None = None,
         rng: np.random.Generator | int | None = 0,
     ) -> np.ndarray:
-        """Joint angles q12 reaching `targets` ({side: TcpTarget}) with `clearance` (m) between
-        the arms and `env_clearance` (m) to everything else; objects in `ignore` are not
-        checked. Arms in `q_fixed` ({side: 6 angles}) stay put. Raises PlanningError."""
+        """Joint angles q (both arms) reaching `targets` ({side: TcpTarget}) with `clearance`
+        (m) between the arms and `env_clearance` (m) to everything else; objects in `ignore`
+        are not checked. Arms in `q_fixed` ({side: its n angles}) stay put. Raises PlanningError."""
         unknown = set(targets) - set(SIDES)
         if unknown or not targets:
             raise ValueError(f"targets must be keyed by 'left'/'right', got {sorted(targets)}")
@@ -148,8 +153,8 @@ class BimanualIK:
         q_other: np.ndarray,
         **kwargs,
     ) -> np.ndarray:
-        """One arm reaches `target` while the other stays at `q_other` (6 angles); returns the
-        full q12. Keyword arguments are those of :meth:`solve`."""
+        """One arm reaches `target` while the other stays at `q_other` (its n angles); returns
+        both arms' q. Keyword arguments are those of :meth:`solve`."""
         other = other_side(side)
         return self.solve({side: target}, q_fixed={other: np.asarray(q_other)}, **kwargs)
 
@@ -168,7 +173,7 @@ class BimanualIK:
         prog, q = ik.get_mutable_prog(), ik.q()
         fixed = m.full_q(nominal)
         free = np.zeros(m.num_positions, bool)
-        free[m.q12_indices] = True
+        free[m.q_indices] = True
         for side in q_fixed:
             free[m.arm_indices[side]] = False
         prog.AddBoundingBoxConstraint(fixed[~free], fixed[~free], q[~free])
@@ -191,8 +196,7 @@ class BimanualIK:
                     world, t.X_WT.rotation(), frame, RigidTransform().rotation(), t.rot_tol
                 )
                 labelled.append((b, f"{side} TCP orientation (tol {t.rot_tol:.3f} rad)"))
-        q12 = q[m.q12_indices]
-        prog.AddQuadraticErrorCost(np.diag(self.weights), self.nominal, q12)
+        prog.AddQuadraticErrorCost(np.diag(self.weights), self.nominal, q[m.q_indices])
         return ik, prog, q, labelled
 
     def _add_clearance(self, prog, q, clearance, env_clearance):
@@ -208,17 +212,17 @@ class BimanualIK:
             out.append((prog.AddConstraint(c, q), label))
         return out
 
-    def _run(self, prog, q, q0_12, solver=None):
+    def _run(self, prog, q, q0, solver=None):
         solver = solver or (self._snopt if self._use_snopt else self._ipopt)
         self.last_attempts += 1
         options = self._ipopt_options if solver is self._ipopt else self._snopt_options
-        return solver.Solve(prog, self.model.full_q(q0_12), options)
+        return solver.Solve(prog, self.model.full_q(q0), options)
 
     def _solve(self, targets, clearance, env_clearance, seeds, restarts, q_fixed, rng):
         m = self.model
         self.last_attempts = 0
         self.last_method = ""
-        free = np.ones(12, bool)
+        free = np.ones(m.num_joints, bool)
         for side in q_fixed:
             free[m.side_slice(side)] = False
 
@@ -261,26 +265,26 @@ class BimanualIK:
                 else:
                     s[free] += rng.normal(0.0, RESTART_SIGMA * (1 + k / 4), free.sum())
                 r = self._run(pose_prog, q1, np.clip(s, m.lower, m.upper))
-                s = m.q12(r.GetSolution(q1))
+                s = m.planning_q(r.GetSolution(q1))
                 if not self._pose_met(targets, s):
                     continue
                 pose_ok.append(s)
             r = self._run(prog, q, s)
             x = r.GetSolution(q)
-            if self._accept(targets, m.q12(x), clearance, env_clearance):
+            if self._accept(targets, m.planning_q(x), clearance, env_clearance):
                 self.last_method = "snopt" if self._use_snopt else "ipopt"
-                return m.q12(x)
-            if self._pose_met(targets, m.q12(x)):
-                pose_ok.append(m.q12(x))
+                return m.planning_q(x)
+            if self._pose_met(targets, m.planning_q(x)):
+                pose_ok.append(m.planning_q(x))
             violation = self._violation(prog, x)
             if violation < best_violation:
                 best, best_violation = x, violation
         if self._use_snopt and best is not None:
-            r = self._run(prog, q, m.q12(best), solver=self._ipopt)
+            r = self._run(prog, q, m.planning_q(best), solver=self._ipopt)
             x = r.GetSolution(q)
-            if self._accept(targets, m.q12(x), clearance, env_clearance):
+            if self._accept(targets, m.planning_q(x), clearance, env_clearance):
                 self.last_method = "ipopt"
-                return m.q12(x)
+                return m.planning_q(x)
         # Every pose solution found violates a clearance: report the closest call.
         m.set_padding(clearance, env_clearance)
         pairs = [m.colliding_pairs(p) for p in pose_ok if m.within_limits(p)]
@@ -310,22 +314,22 @@ class BimanualIK:
         for k in range(len(seeds) + restarts):
             r = self._run(prog, q, s)
             x = r.GetSolution(q)
-            if self._pose_met(targets, m.q12(x)) and m.within_limits(m.q12(x)):
-                return m.q12(x)
+            if self._pose_met(targets, m.planning_q(x)) and m.within_limits(m.planning_q(x)):
+                return m.planning_q(x)
             if k + 1 < len(seeds):
                 s = seeds[k + 1]
                 continue
             failing = {
                 label.split()[0] for b, label in labelled if not prog.CheckSatisfied(b, x, 1e-4)
             }
-            s = np.clip(m.q12(x), m.lower, m.upper)
+            s = np.clip(m.planning_q(x), m.lower, m.upper)
             base = seeds[k % len(seeds)]
             for side in failing:
                 sl = m.side_slice(side)
                 if k % 2:
                     s[sl] = rng.uniform(m.lower[sl], m.upper[sl])
                 else:
-                    s[sl] = base[sl] + rng.normal(0.0, RESTART_SIGMA * (1 + k / 4), 6)
+                    s[sl] = base[sl] + rng.normal(0.0, RESTART_SIGMA * (1 + k / 4), m.arm_joints)
             s = np.clip(s, m.lower, m.upper)
         failed = self._failed_labels(prog, x, labelled)
         what = "; ".join(failed) if failed else "the pose constraints jointly"
@@ -351,22 +355,22 @@ class BimanualIK:
         cost = [float(self.weights @ (c - self.nominal) ** 2) for c in combos]
         return [combos[i] for i in np.argsort(cost)]
 
-    def _accept(self, targets, q12: np.ndarray, clearance: float, env_clearance: float) -> bool:
+    def _accept(self, targets, q: np.ndarray, clearance: float, env_clearance: float) -> bool:
         """Independent check of a solver answer (solver status aside: SNOPT may report that it
         cannot improve a point that meets every constraint)."""
         m = self.model
-        if not np.all(np.isfinite(q12)) or not m.within_limits(q12, 1e-6):
+        if not np.all(np.isfinite(q)) or not m.within_limits(q, 1e-6):
             return False
-        if not self._pose_met(targets, q12):
+        if not self._pose_met(targets, q):
             return False
         m.set_padding(max(clearance - CHECK_SLACK, 0.0), max(env_clearance - CHECK_SLACK, 0.0))
-        return m.collision_free(q12)
+        return m.collision_free(q)
 
-    def _pose_met(self, targets, q12: np.ndarray) -> bool:
-        if not np.all(np.isfinite(q12)):
+    def _pose_met(self, targets, q: np.ndarray) -> bool:
+        if not np.all(np.isfinite(q)):
             return False
         for side, t in targets.items():
-            dp, dr = t.error(self.model.tcp_pose(q12, side))
+            dp, dr = t.error(self.model.tcp_pose(q, side))
             if dp > t.pos_tol * (1 + 1e-3) + 1e-7 or dr > t.rot_tol * (1 + 1e-3) + 1e-7:
                 return False
         return True
@@ -423,10 +427,13 @@ def arm_ik_closed_form(
     model: PlanningModel, side: str, X_WT: RigidTransform, near: np.ndarray | None = None
 ) -> list[np.ndarray]:
     """All exact joint solutions (up to 8 branches, within limits, each FK-verified) putting the
-    TCP of `side` at X_WT; angles are wrapped nearest to `near`. Empty if unreachable."""
+    TCP of `side` at X_WT; angles are wrapped nearest to `near`. Empty if unreachable. Only for
+    an embodiment declaring ``closed_form_ik="spherical_wrist_6r"`` (ValueError otherwise)."""
+    if not has_closed_form(model):
+        raise ValueError(f"embodiment {model.embodiment.name!r} declares no closed-form IK")
     arm = model.embodiment.arm
     j = arm.joints
-    near = model.home[:6] if near is None else near
+    near = model.home[model.side_slice(side)] if near is None else near
     X_BT = rigid_transform(model.embodiment.base_pose(side)).inverse() @ X_WT
     R, p = X_BT.rotation().matrix(), X_BT.translation()
     w = p - (j[5].origin.xyz[0] + arm.gripper.tcp_x) * R[:, 0]  # wrist centre
@@ -459,11 +466,11 @@ def arm_ik_closed_form(
                 if q is not None:
                     sols.append(q)
     out = []
-    q12 = model.home.copy()
+    q_both = model.home.copy()
     sl = model.side_slice(side)
     for q in sols:
-        q12[sl] = q
-        X = model.tcp_pose(q12, side)
+        q_both[sl] = q
+        X = model.tcp_pose(q_both, side)
         if (
             np.linalg.norm(X.translation() - X_WT.translation()) < 1e-6
             and np.linalg.norm(X.rotation().matrix() - X_WT.rotation().matrix()) < 1e-6
@@ -498,14 +505,20 @@ def closed_form_diagnosis(model: PlanningModel, side: str, X_WT: RigidTransform)
     )
 
 
+def has_closed_form(model: PlanningModel) -> bool:
+    """Whether the model's embodiment declares the closed form of :func:`arm_ik_closed_form`
+    (``Embodiment.closed_form_ik``)."""
+    return model.embodiment.closed_form_ik == "spherical_wrist_6r"
+
+
 def closed_form_applies(model: PlanningModel, trials: int = 8) -> bool:
     """Whether :func:`arm_ik_closed_form` recovers random configurations of this arm."""
     rng = np.random.default_rng(0)
     for _ in range(trials):
-        q12 = rng.uniform(model.lower, model.upper)
+        q_both = rng.uniform(model.lower, model.upper)
         for side in SIDES:
-            q = q12[model.side_slice(side)]
-            sols = arm_ik_closed_form(model, side, model.tcp_pose(q12, side), q)
+            q = q_both[model.side_slice(side)]
+            sols = arm_ik_closed_form(model, side, model.tcp_pose(q_both, side), q)
             if not any(np.allclose(s, q, atol=1e-6) for s in sols):
                 return False
     return True

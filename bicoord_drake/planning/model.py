@@ -20,13 +20,14 @@
 - ``ignoring(names)`` is a context manager under which the named objects collide with nothing
   (the object being grasped, or the held object a second gripper takes over).
 
-Configurations: planning uses ``q12 = [left 6 arm joints, right 6 arm joints]``; ``full_q(q12)``
-adds the fixed finger positions to give the plant's position vector.
+Configurations: planning uses ``q = [left n arm joints, right n arm joints]`` (n from the
+embodiment: 6 for the ViperX, 7 for the Panda; ``side_slice(side)`` gives one arm's entries);
+``full_q(q)`` adds the fixed finger positions to give the plant's position vector.
 
 Checking: ``set_padding(clearance, env_clearance)`` (or the ``padded`` context manager) sets the
 checker's margins - ``clearance`` between the two arms and what they hold, ``env_clearance`` for
-each arm's self pairs and against the table and objects; ``collision_free(q12)``,
-``colliding_pairs(q12)`` and ``edge_free(a, b, resolution)`` query it. ``path_distance(a, b)``
+each arm's self pairs and against the table and objects; ``collision_free(q)``,
+``colliding_pairs(q)`` and ``edge_free(a, b, resolution)`` query it. ``path_distance(a, b)``
 bounds how far any robot point moves along a joint-space segment (the resolution metric).
 
 Distances for the optimisers (:mod:`.ik`, :mod:`.motion`) come from two diagram contexts whose
@@ -63,6 +64,7 @@ from pydrake.all import (
 
 from bicoord_drake.models.embodiment import SIDES, Embodiment
 from bicoord_drake.models.geometry import Primitive
+from bicoord_drake.models.layout import default_embodiment
 from bicoord_drake.models.objects import SceneObject, object_sdf
 from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import Scene
@@ -127,9 +129,13 @@ class PlanningModel:
     """Kinematic + collision model of the two arms in one scene (see the module docstring)."""
 
     def __init__(
-        self, scene: Scene | None = None, embodiment: Embodiment | str = "aloha_viperx"
+        self, scene: Scene | None = None, embodiment: Embodiment | str | None = None
     ) -> None:
+        """The model of `scene` (default: an empty table) with `embodiment`'s two arms (a
+        registered name or an :class:`Embodiment`; default: the default robot)."""
         self.scene = scene or Scene()
+        if embodiment is None:
+            embodiment = default_embodiment()
         self.embodiment = get_embodiment(embodiment) if isinstance(embodiment, str) else embodiment
         builder = RobotDiagramBuilder(time_step=0.0)
         plant = builder.plant()
@@ -165,7 +171,10 @@ class PlanningModel:
             )
             for side in SIDES
         }
-        self.q12_indices = np.concatenate([self.arm_indices["left"], self.arm_indices["right"]])
+        self.q_indices = np.concatenate([self.arm_indices["left"], self.arm_indices["right"]])
+        #: Joints per arm, and each arm's entries in a planning configuration.
+        self.arm_joints = n = len(arm.joints)
+        self.arm_slices = {"left": slice(0, n), "right": slice(n, 2 * n)}
         self.lower = np.tile(arm.lower, 2)
         self.upper = np.tile(arm.upper, 2)
         self.home = np.tile(np.asarray(self.embodiment.home, dtype=float), 2)
@@ -219,38 +228,43 @@ class PlanningModel:
     def num_positions(self) -> int:
         return self.plant.num_positions()
 
-    def full_q(self, q12: np.ndarray) -> np.ndarray:
-        """Plant positions for planning joints `q12` (fingers at the current openings)."""
-        q = self._q_full.copy()
-        q[self.q12_indices] = q12
-        return q
+    @property
+    def num_joints(self) -> int:
+        """Length of a planning configuration: both arms' joints (2 n)."""
+        return 2 * self.arm_joints
 
-    def q12(self, q_full: np.ndarray) -> np.ndarray:
+    def full_q(self, q: np.ndarray) -> np.ndarray:
+        """Plant positions for planning joints `q` (fingers at the current openings)."""
+        q_full = self._q_full.copy()
+        q_full[self.q_indices] = q
+        return q_full
+
+    def planning_q(self, q_full: np.ndarray) -> np.ndarray:
         """The planning joints of a plant position vector."""
-        return np.asarray(q_full)[self.q12_indices]
+        return np.asarray(q_full)[self.q_indices]
 
     def side_slice(self, side: str) -> slice:
-        """The `q12` entries of one arm."""
-        return slice(0, 6) if side == "left" else slice(6, 12)
+        """The entries of one arm in a planning configuration: ``0:n`` left, ``n:2n`` right."""
+        return self.arm_slices[side]
 
     def set_gripper(self, side: str, opening: float) -> None:
         """Finger opening in [0, 1] held fixed while planning for `side`."""
         finger = float(self.embodiment.arm.gripper.finger_position(opening))
         self._q_full[self.finger_indices[side]] = finger
 
-    def within_limits(self, q12: np.ndarray, tol: float = 1e-6) -> bool:
-        """Whether `q12` is within the joint limits (to `tol`)."""
-        return bool(np.all(q12 >= self.lower - tol) and np.all(q12 <= self.upper + tol))
+    def within_limits(self, q: np.ndarray, tol: float = 1e-6) -> bool:
+        """Whether `q` is within the joint limits (to `tol`)."""
+        return bool(np.all(q >= self.lower - tol) and np.all(q <= self.upper + tol))
 
     # ------------------------------------------------------------------ kinematics
-    def tcp_pose(self, q12: np.ndarray, side: str) -> RigidTransform:
-        """X_WT: the TCP of `side` in the world at `q12`."""
-        self.plant.SetPositions(self._fk_context, self.full_q(q12))
+    def tcp_pose(self, q: np.ndarray, side: str) -> RigidTransform:
+        """X_WT: the TCP of `side` in the world at `q`."""
+        self.plant.SetPositions(self._fk_context, self.full_q(q))
         return self.tcp_frames[side].CalcPoseInWorld(self._fk_context)
 
-    def gripper_pose(self, q12: np.ndarray, side: str) -> RigidTransform:
-        """X_WG: the gripper link of `side` in the world at `q12`."""
-        self.plant.SetPositions(self._fk_context, self.full_q(q12))
+    def gripper_pose(self, q: np.ndarray, side: str) -> RigidTransform:
+        """X_WG: the gripper link of `side` in the world at `q`."""
+        self.plant.SetPositions(self._fk_context, self.full_q(q))
         return self.gripper_bodies[side].EvalPoseInWorld(self._fk_context)
 
     # ------------------------------------------------------------------ world state
@@ -322,25 +336,25 @@ class PlanningModel:
         """What each gripper holds, by side."""
         return dict(self._held)
 
-    def held_pose(self, side: str, q12: np.ndarray) -> RigidTransform:
-        """X_WO of the object held by `side` at `q12`."""
-        return self.gripper_pose(q12, side) @ self._held[side].X_GO
+    def held_pose(self, side: str, q: np.ndarray) -> RigidTransform:
+        """X_WO of the object held by `side` at `q`."""
+        return self.gripper_pose(q, side) @ self._held[side].X_GO
 
     def attach(
         self,
         name: str,
         side: str,
-        q12: np.ndarray,
+        q: np.ndarray,
         X_WO: RigidTransform | None = None,
         *,
         together: bool = False,
     ) -> None:
-        """`side` grasps `name` at configuration `q12` (object at `X_WO`, default: its current
+        """`side` grasps `name` at configuration `q` (object at `X_WO`, default: its current
         pose); from now on it moves with that gripper and is checked as part of the robot.
 
         With `together`, the object may already be held by the other gripper: both then hold
         it (a two-handed hold; see the module docstring); `X_WO` defaults to where the other
-        gripper holds it at `q12`."""
+        gripper holds it at `q`."""
         if side in self._held:
             raise PlanningError("gripper_busy", f"{side} gripper already holds {self._held[side]}")
         other = self._holder(name)
@@ -349,30 +363,30 @@ class PlanningModel:
                 "object_held", f"{name} is already held (by {other}; together=True holds it both)"
             )
         if X_WO is None:
-            X_WO = self._object_poses[name] if other is None else self.held_pose(other, q12)
-        X_GO = self.gripper_pose(q12, side).inverse() @ X_WO
+            X_WO = self._object_poses[name] if other is None else self.held_pose(other, q)
+        X_GO = self.gripper_pose(q, side).inverse() @ X_WO
         self._held[side] = HeldObject(name, side, X_GO)
         if other is None:
             self._object_poses[name] = X_WO
             self._refresh_anchor(name)
         self._sync_checker_held()
 
-    def attach_both(self, name: str, q12: np.ndarray, X_WO: RigidTransform | None = None) -> None:
-        """Both grippers grasp `name` at `q12` (a two-handed hold; object at `X_WO`, default:
+    def attach_both(self, name: str, q: np.ndarray, X_WO: RigidTransform | None = None) -> None:
+        """Both grippers grasp `name` at `q` (a two-handed hold; object at `X_WO`, default:
         its current pose)."""
         for side in SIDES:
             if side in self._held:
                 raise PlanningError(
                     "gripper_busy", f"{side} gripper already holds {self._held[side]}"
                 )
-        self.attach(name, "left", q12, X_WO)
-        self.attach(name, "right", q12, X_WO, together=True)
+        self.attach(name, "left", q, X_WO)
+        self.attach(name, "right", q, X_WO, together=True)
 
     def detach(
-        self, side: str, q12: np.ndarray | None = None, X_WO: RigidTransform | None = None
+        self, side: str, q: np.ndarray | None = None, X_WO: RigidTransform | None = None
     ) -> None:
-        """Release what `side` holds; it stays where the gripper is at `q12` (or at `X_WO`).
-        If the other gripper holds it too, it stays held by that one (`q12`/`X_WO` unused)."""
+        """Release what `side` holds; it stays where the gripper is at `q` (or at `X_WO`).
+        If the other gripper holds it too, it stays held by that one (`q`/`X_WO` unused)."""
         held = self._held.pop(side, None)
         if held is None:
             raise PlanningError("gripper_empty", f"{side} gripper holds nothing")
@@ -380,25 +394,23 @@ class PlanningModel:
             self._sync_checker_held()
             return
         if X_WO is None:
-            if q12 is None:
+            if q is None:
                 self._held[side] = held
-                raise ValueError("detach needs the configuration q12 or the release pose X_WO")
-            X_WO = self.gripper_pose(q12, side) @ held.X_GO
+                raise ValueError("detach needs the configuration q or the release pose X_WO")
+            X_WO = self.gripper_pose(q, side) @ held.X_GO
         self._sync_checker_held()
         self.set_object_pose(held.name, X_WO)
 
-    def detach_both(
-        self, q12: np.ndarray | None = None, X_WO: RigidTransform | None = None
-    ) -> None:
-        """End a two-handed hold: the object stays where the grippers leave it at `q12` (or at
+    def detach_both(self, q: np.ndarray | None = None, X_WO: RigidTransform | None = None) -> None:
+        """End a two-handed hold: the object stays where the grippers leave it at `q` (or at
         `X_WO`)."""
         name = self.held_together
         if name is None:
             raise PlanningError("not_held_together", "the grippers do not hold one object together")
         if X_WO is None:
-            if q12 is None:
-                raise ValueError("detach_both needs the configuration q12 or the release pose X_WO")
-            X_WO = self.held_pose("left", q12)
+            if q is None:
+                raise ValueError("detach_both needs the configuration q or the release pose X_WO")
+            X_WO = self.held_pose("left", q)
         self.detach("right")
         self.detach("left", X_WO=X_WO)
 
@@ -545,13 +557,13 @@ class PlanningModel:
         finally:
             self.checker.SetPaddingMatrix(previous)
 
-    def collision_free(self, q12: np.ndarray) -> bool:
-        """Whether `q12` is collision-free under the current padding (held objects included)."""
-        return bool(self.checker.CheckConfigCollisionFree(self.full_q(q12)))
+    def collision_free(self, q: np.ndarray) -> bool:
+        """Whether `q` is collision-free under the current padding (held objects included)."""
+        return bool(self.checker.CheckConfigCollisionFree(self.full_q(q)))
 
-    def colliding_pairs(self, q12: np.ndarray, margin: float = 0.0) -> list[tuple[str, str, float]]:
-        """Body pairs closer than their padding + `margin` at `q12`: (body, other, distance)."""
-        clearance = self.checker.CalcRobotClearance(self.full_q(q12), 0.1 + margin)
+    def colliding_pairs(self, q: np.ndarray, margin: float = 0.0) -> list[tuple[str, str, float]]:
+        """Body pairs closer than their padding + `margin` at `q`: (body, other, distance)."""
+        clearance = self.checker.CalcRobotClearance(self.full_q(q), 0.1 + margin)
         out = []
         for r, o, d in zip(
             clearance.robot_indices(), clearance.other_indices(), clearance.distances(), strict=True
@@ -561,12 +573,12 @@ class PlanningModel:
         return sorted(set(out), key=lambda x: x[2])
 
     def edge_free(
-        self, q12_a: np.ndarray, q12_b: np.ndarray, resolution: float, endpoints: bool = True
+        self, q_a: np.ndarray, q_b: np.ndarray, resolution: float, endpoints: bool = True
     ) -> bool:
         """Whether the straight segment a-b is collision-free (current padding), checked so that
         no robot point moves more than `resolution` (m) between checks. Checks run coarse to
         fine (bisection order), so a colliding segment is usually rejected after a few."""
-        a, b = np.asarray(q12_a, float), np.asarray(q12_b, float)
+        a, b = np.asarray(q_a, float), np.asarray(q_b, float)
         n = max(1, int(np.ceil(self.path_distance(a, b) / resolution)))
         order = _bisection_order(n) if endpoints else _bisection_order(n)[2:]
         start = 0
@@ -574,7 +586,7 @@ class PlanningModel:
         while start < len(order):
             t = order[start : start + size] / n
             Q = np.tile(self._q_full, (len(t), 1))
-            Q[:, self.q12_indices] = a + t[:, None] * (b - a)
+            Q[:, self.q_indices] = a + t[:, None] * (b - a)
             if not all(self.checker.CheckConfigsCollisionFree(list(Q))):
                 return False
             start += size
@@ -587,12 +599,13 @@ class PlanningModel:
         return f"{inst}/{body.name()}" if inst.endswith("_arm") else body.name()
 
     # ------------------------------------------------------------------ path resolution
-    def path_distance(self, q12_a: np.ndarray, q12_b: np.ndarray) -> float:
+    def path_distance(self, q_a: np.ndarray, q_b: np.ndarray) -> float:
         """An upper bound (m) on how far any single robot point (held objects included) moves
-        along the straight joint-space segment from `q12_a` to `q12_b`: per arm, the sum over
+        along the straight joint-space segment from `q_a` to `q_b`: per arm, the sum over
         its joints of |dq| times the joint's lever-arm bound; the larger of the two arms."""
-        d = np.abs(np.asarray(q12_b, float) - np.asarray(q12_a, float)) * self.joint_radius
-        return float(max(d[:6].sum(), d[6:].sum()))
+        d = np.abs(np.asarray(q_b, float) - np.asarray(q_a, float)) * self.joint_radius
+        n = self.arm_joints
+        return float(max(d[:n].sum(), d[n:].sum()))
 
     def _joint_radius_bounds(self) -> np.ndarray:
         """Per joint, a bound on the distance from its axis of any collision geometry it moves.

@@ -1,10 +1,10 @@
 """Collision-checked joint-space paths for one or both arms.
 
-:func:`plan_path` returns waypoints ``(K, 12)`` in ``q12`` whose straight segments are all
-collision-free - held objects included - under the requested clearances, checked at a given
-*resolution*: between two checked configurations no point of the robot moves more than
-``resolution`` metres (a per-joint bound on the lever arm of every link, from
-:meth:`PlanningModel.path_distance`, not a joint-angle step).
+:func:`plan_path` returns waypoints ``(K, 2 n)`` in the model's configuration ``q`` (both arms'
+n joints) whose straight segments are all collision-free - held objects included - under the
+requested clearances, checked at a given *resolution*: between two checked configurations no
+point of the robot moves more than ``resolution`` metres (a per-joint bound on the lever arm of
+every link, from :meth:`PlanningModel.path_distance`, not a joint-angle step).
 
 Search, in order: the straight segment; a via-point (one arm at a time in either order, then
 random around the midpoint, then anywhere); a bidirectional RRT-Connect; then random
@@ -69,7 +69,7 @@ def plan_path(
     max_time: float = 30.0,
     rng: np.random.Generator | int | None = 0,
 ) -> np.ndarray:
-    """Collision-free waypoints (K, 12) from `q_start` to `q_goal` (both q12).
+    """Collision-free waypoints (K, 2 n) from `q_start` to `q_goal` (both arms' joints).
 
     Only the joints of `arms` move (the others must be equal in start and goal).
     `clearance` (m) applies between the two arms and what they hold, `env_clearance` (m) to
@@ -80,7 +80,7 @@ def plan_path(
     'path_in_collision'; '*_out_of_limits').
     """
     q_start, q_goal = _check_input(model, q_start, q_goal, arms)
-    moving = np.zeros(12, bool)
+    moving = np.zeros(model.num_joints, bool)
     for side in arms:
         moving[model.side_slice(side)] = True
     rng = np.random.default_rng(rng)
@@ -128,9 +128,10 @@ def sample_configuration(
     tcp_regions: Mapping[str, tuple[Sequence[float], Sequence[float]]] | None = None,
     max_tries: int = 200_000,
 ) -> np.ndarray:
-    """A uniformly random q12 within the joint limits, collision-free with the given
-    clearances, with each TCP in its box `tcp_regions[side]` = (lower xyz, upper xyz), if any.
-    Used for reachable IK targets (FK of a sample) and for test and benchmark cases."""
+    """A uniformly random configuration (both arms) within the joint limits, collision-free
+    with the given clearances, with each TCP in its box `tcp_regions[side]` = (lower xyz,
+    upper xyz), if any. Used for reachable IK targets (FK of a sample) and for test and
+    benchmark cases."""
     regions = {
         side: (np.asarray(lo), np.asarray(hi)) for side, (lo, hi) in (tcp_regions or {}).items()
     }
@@ -207,7 +208,7 @@ class _Planner:
         """Via-point candidates: one arm at a time (either order: often untangles a swap), then
         around the midpoint with a spread that grows, then anywhere within the limits."""
         if self.moving.all():
-            for first in (slice(0, 6), slice(6, 12)):
+            for first in (self.m.side_slice(side) for side in SIDES):
                 v = start.copy()
                 v[first] = goal[first]
                 yield v
@@ -240,10 +241,10 @@ class _Planner:
             trees.reverse()
         return None
 
-    @staticmethod
-    def _nearest(tree, q, w) -> int:
+    def _nearest(self, tree, q, w) -> int:
         d = np.abs(np.asarray(tree[0]) - q) * w
-        return int(np.argmin(np.maximum(d[:, :6].sum(1), d[:, 6:].sum(1))))
+        n = self.m.arm_joints
+        return int(np.argmin(np.maximum(d[:, :n].sum(1), d[:, n:].sum(1))))
 
     def _steer(self, q_from, q_to) -> np.ndarray:
         d = self.m.path_distance(q_from, q_to)
@@ -349,13 +350,13 @@ def refine_path(
     prog = kto.get_mutable_prog()
     fixed = m.full_q(path[0])
     moving = np.zeros(nq, bool)
-    moving[m.q12_indices] = np.any(np.abs(path - path[0]) > 0, axis=0)
+    moving[m.q_indices] = np.any(np.abs(path - path[0]) > 0, axis=0)
     lower, upper = fixed.copy(), fixed.copy()
-    lower[m.q12_indices] = np.where(moving[m.q12_indices], m.lower, path[0])
-    upper[m.q12_indices] = np.where(moving[m.q12_indices], m.upper, path[0])
+    lower[m.q_indices] = np.where(moving[m.q_indices], m.lower, path[0])
+    upper[m.q_indices] = np.where(moving[m.q_indices], m.upper, path[0])
     kto.AddPositionBounds(lower, upper)
     vmax = np.zeros(nq)
-    vmax[m.q12_indices] = np.tile([j.velocity_limit for j in m.embodiment.arm.joints], 2)
+    vmax[m.q_indices] = np.tile([j.velocity_limit for j in m.embodiment.arm.joints], 2)
     kto.AddVelocityBounds(-vmax, vmax)
     kto.AddPathPositionConstraint(m.full_q(path[0]), m.full_q(path[0]), 0.0)
     kto.AddPathPositionConstraint(m.full_q(path[-1]), m.full_q(path[-1]), 1.0)
@@ -383,7 +384,7 @@ def refine_path(
         return None
     out = kto.ReconstructTrajectory(result)
     ts = np.linspace(out.start_time(), out.end_time(), output_points)
-    waypoints = np.array([m.q12(out.value(t).ravel()) for t in ts])
+    waypoints = np.array([m.planning_q(out.value(t).ravel()) for t in ts])
     waypoints[0], waypoints[-1] = path[0], path[-1]
     if not all(m.within_limits(q) for q in waypoints):
         return None
@@ -409,12 +410,14 @@ def _check_input(model, q_start, q_goal, arms) -> tuple[np.ndarray, np.ndarray]:
     q_start = np.asarray(q_start, dtype=float)
     q_goal = np.asarray(q_goal, dtype=float)
     for q, what in ((q_start, "start"), (q_goal, "goal")):
-        if q.shape != (12,) or not np.all(np.isfinite(q)):
-            raise ValueError(f"q_{what} must be a finite 12-vector, got shape {q.shape}")
+        if q.shape != (model.num_joints,) or not np.all(np.isfinite(q)):
+            raise ValueError(
+                f"q_{what} must be a finite {model.num_joints}-vector, got shape {q.shape}"
+            )
         if not model.within_limits(q):
             bad = np.flatnonzero((q < model.lower - 1e-6) | (q > model.upper + 1e-6))
             raise PlanningError(
-                f"{what}_out_of_limits", f"q12 entries {bad.tolist()} are outside the joint limits"
+                f"{what}_out_of_limits", f"q entries {bad.tolist()} are outside the joint limits"
             )
     if not arms or set(arms) - set(SIDES):
         raise ValueError(f"arms must be a non-empty subset of {SIDES}, got {arms}")

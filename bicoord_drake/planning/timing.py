@@ -16,7 +16,7 @@ Key functions:
   back to time synchronization and then bows off the line). Corners are passed at rest - a
   non-zero velocity through a corner would need infinite acceleration on an exact polyline;
   collinear runs are merged into one segment. Every corner is a sample, so the station's linear
-  interpolation between samples never cuts a corner either. With a 12-DoF path both arms start
+  interpolation between samples never cuts a corner either. With a two-arm path both arms start
   and arrive at the same instant by construction.
 - :func:`synchronize` / :func:`rendezvous` - arms with separate paths: the faster one is
   uniformly slowed (time-scaled, which keeps its path and only lowers velocity, acceleration and
@@ -26,8 +26,9 @@ Key functions:
   station's (N, 2 (n + 1)) action array ``[left n, left opening, right n, right opening]``
   (:class:`~bicoord_drake.models.layout.ActionLayout`; (N, 14) for two 6-joint arms).
 
-Joint vectors are ``[left 6, right 6]`` for two arms; every function also works for one arm
-(n = 6) with matching :class:`JointLimits`.
+Joint vectors are ``[left n, right n]`` for two arms of n joints each (n from the embodiment:
+6 for the ViperX, 7 for the Panda; :func:`arm_slices`); every function also works for one arm
+with matching :class:`JointLimits`.
 """
 
 from __future__ import annotations
@@ -94,7 +95,7 @@ class JointLimits:
     def from_embodiment(
         cls, embodiment: Embodiment, arms: int = 2, speed: float = 1.0
     ) -> JointLimits:
-        """Limits of `arms` copies of the embodiment's arm ([left 6, right 6] for two).
+        """Limits of `arms` copies of the embodiment's arm ([left n, right n] for two).
 
         `speed` slows every motion uniformly: velocity x speed, acceleration x speed^2,
         jerk x speed^3 (the limits of the same motion played 1/speed times slower).
@@ -127,8 +128,14 @@ class JointLimits:
         )
 
     def select(self, index: slice | Sequence[int] | np.ndarray) -> JointLimits:
-        """The limits of a subset of joints (e.g. ``ARM_SLICES['left']``)."""
+        """The limits of a subset of joints (e.g. ``arm_slices(n)['left']``)."""
         return JointLimits(*(getattr(self, f)[index] for f in _LIMIT_FIELDS))
+
+    def arm(self, side: Side) -> JointLimits:
+        """One arm's limits of two-arm limits ``[left n, right n]``."""
+        if self.n % 2:
+            raise ValueError(f"arm() needs two-arm limits, these are for {self.n} joints")
+        return self.select(arm_slices(self.n // 2)[side])
 
     @staticmethod
     def concat(*parts: JointLimits) -> JointLimits:
@@ -138,8 +145,10 @@ class JointLimits:
 
 _LIMIT_FIELDS = ("lower", "upper", "velocity", "acceleration", "jerk")
 
-#: Where each arm's joints sit in the 12-vector.
-ARM_SLICES: dict[Side, slice] = {"left": slice(0, 6), "right": slice(6, 12)}
+
+def arm_slices(arm_joints: int) -> dict[Side, slice]:
+    """Where each arm's joints sit in a two-arm joint vector ``[left n, right n]``."""
+    return {"left": slice(0, arm_joints), "right": slice(arm_joints, 2 * arm_joints)}
 
 
 # --------------------------------------------------------------------------------------------
@@ -355,10 +364,10 @@ class TimedTrajectory:
         return self.then(TimedTrajectory.hold(self.goal, num_steps - self.num_steps, self.dt))
 
     def arm(self, side: Side) -> TimedTrajectory:
-        """One arm's 6 joints of a 12-DoF trajectory."""
-        if self.n != 12:
-            raise ValueError(f"arm() needs a 12-DoF trajectory, this one has {self.n} DoF")
-        sl = ARM_SLICES[side]
+        """One arm's joints of a two-arm trajectory ``[left n, right n]``."""
+        if self.n % 2:
+            raise ValueError(f"arm() needs a two-arm trajectory, this one has {self.n} DoF")
+        sl = arm_slices(self.n // 2)[side]
         return TimedTrajectory(
             self.dt, self.q[:, sl], self.qd[:, sl], self.qdd[:, sl], _Select(self._timeline, sl)
         )
@@ -530,7 +539,8 @@ def time_path(
 ) -> TimedTrajectory:
     """Time a joint polyline exactly along its segments, at rest at every corner.
 
-    `waypoints` is (K, n) (n = 12 moves both arms together: they start and arrive together).
+    `waypoints` is (K, n) (both arms' joints move both arms together: they start and arrive
+    together).
     Each straight run is a 1-DoF jerk-limited Ruckig profile of its path parameter lasting a
     whole number of control periods; corners are visited at rest. Raises
     ``PlanningError('joint_limits')`` if a waypoint is outside the position limits.
@@ -580,15 +590,16 @@ def rendezvous(
     *,
     arrive_at: float | None = None,
 ) -> TimedTrajectory:
-    """Both arms follow their own paths ((K, 6) each) and reach their last waypoints (the
+    """Both arms follow their own paths ((K, n) each) and reach their last waypoints (the
     meeting configurations, e.g. for a handover) at the same control step.
 
-    `limits` are 12-DoF. `arrive_at` (s from the start, rounded up to the grid) requests a later
-    common arrival; ``PlanningError('timing_infeasible')`` if an arm cannot make it by then.
+    `limits` are for both arms (2 n joints). `arrive_at` (s from the start, rounded up to the
+    grid) requests a later common arrival; ``PlanningError('timing_infeasible')`` if an arm
+    cannot make it by then.
     """
-    _check_dim(limits, 12)
-    left = time_path(left_path, limits.select(ARM_SLICES["left"]), dt)
-    right = time_path(right_path, limits.select(ARM_SLICES["right"]), dt)
+    _check_dim(limits, 2 * np.shape(left_path)[1])
+    left = time_path(left_path, limits.arm("left"), dt)
+    right = time_path(right_path, limits.arm("right"), dt)
     steps = None if arrive_at is None else _steps_at_least(arrive_at, dt)
     left, right = synchronize(left, right, num_steps=steps)
     return stack_arms(left, right)

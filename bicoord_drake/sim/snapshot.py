@@ -16,13 +16,9 @@ from bicoord_drake.models.scene import Scene
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import build_station
 
-#: Named arm poses: ``home`` is the embodiment's own; the others are one 6-joint arm's joints
-#: (ViperX-like kinematics), the right arm mirroring the waist and the forearm/wrist rolls.
-ARM_POSES: dict[str, tuple[float, ...] | None] = {
-    "home": None,
-    "reach": (-0.35, 0.05, 0.35, 0.0, 1.0, 0.0),
-}
-_MIRROR = np.array([-1, 1, 1, -1, 1, -1])
+#: Named arm poses, both the embodiment's own data: ``home`` and ``reach``
+#: (``Embodiment.reach_pose``: leaning over the table; home if the embodiment has none).
+ARM_POSES: tuple[str, ...] = ("home", "reach")
 
 
 def pose_action(config: StationConfig, pose: str) -> np.ndarray:
@@ -30,17 +26,12 @@ def pose_action(config: StationConfig, pose: str) -> np.ndarray:
     if pose not in ARM_POSES:
         raise ValueError(f"unknown pose {pose!r}; choose one of: {', '.join(ARM_POSES)}")
     embodiment = get_embodiment(config.embodiment)
-    q = ARM_POSES[pose]
-    if q is None:
+    if pose == "home" or embodiment.reach_pose is None:
         return embodiment.home_action()
-    layout = action_layout(embodiment)
-    if len(q) != layout.arm_joints:
-        raise ValueError(
-            f"pose {pose!r} is defined for 6-joint arms; {embodiment.name} has "
-            f"{layout.arm_joints}: use pose 'home'"
-        )
-    left = np.array(q)
-    return layout.compose({"left": left, "right": left * _MIRROR}, {"left": 1.0, "right": 1.0})
+    left, right = (np.array(q, dtype=float) for q in embodiment.reach_pose)
+    return action_layout(embodiment).compose(
+        {"left": left, "right": right}, {"left": 1.0, "right": 1.0}
+    )
 
 
 def render_snapshot(

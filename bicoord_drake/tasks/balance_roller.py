@@ -12,7 +12,6 @@ from pydrake.all import AngleAxis, RigidTransform, RotationMatrix
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import CylinderShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     SkillContext,
     carry_together,
@@ -190,7 +189,7 @@ class BalanceRoller(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        ctx = SkillContext(PlanningModel(scene), speed=SPEED)
+        ctx = SkillContext(view.planning_model(), speed=SPEED)
         radius = scene.draws["roller_diameter"] / 2
         block_top = TABLE_TOP + BLOCK_EDGE
 

@@ -12,7 +12,6 @@ from pydrake.all import RigidTransform, RollPitchYaw
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     SkillContext,
     carry_together,
@@ -228,7 +227,7 @@ class BuildBridge(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        ctx = SkillContext(PlanningModel(scene), speed=SPEED)
+        ctx = SkillContext(view.planning_model(), speed=SPEED)
         side = scene.draws["section"]
         top = TABLE_TOP + side  # the piers' tops
 

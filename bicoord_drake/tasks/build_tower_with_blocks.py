@@ -14,7 +14,6 @@ from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import stack_target, table_target
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
@@ -232,7 +231,7 @@ class BuildTowerWithBlocks(Task):
         large, middle, small = BLOCKS
         sides = _sides(scene)
         first, mid_arm, small_arm = sides["large"], sides["middle"], sides["small"]
-        ctx = SkillContext(PlanningModel(scene))
+        ctx = SkillContext(view.planning_model())
 
         run = partial(follow, ctx, view)
 

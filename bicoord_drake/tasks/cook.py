@@ -16,7 +16,6 @@ from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.ik import TcpTarget
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
@@ -279,7 +278,7 @@ class Cook(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        ctx = SkillContext(PlanningModel(scene))
+        ctx = SkillContext(view.planning_model())
         in_pan: list[str] = []
         home = view.embodiment.home_action()
 

@@ -23,7 +23,6 @@ from bicoord_drake.planning.grasps import (
     table_target,
 )
 from bicoord_drake.planning.ik import TcpTarget
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
@@ -38,7 +37,6 @@ from bicoord_drake.planning.skills import (
     solve_tcp,
 )
 from bicoord_drake.planning.skills.core import combine
-from bicoord_drake.planning.timing import ARM_SLICES
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     Predicate,
@@ -290,7 +288,7 @@ class DivideBlockTower(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        ctx = SkillContext(PlanningModel(scene))
+        ctx = SkillContext(view.planning_model())
         on_tower = list(CUBES)
         signs = {ARM[k]: scene.draws[f"sign_{k.lower()}_xy"] for k in "AB"}
         placed: dict[str, list[str]] = {"left": [], "right": []}
@@ -448,7 +446,7 @@ def _approach(ctx: SkillContext, side: str, name: str, above: str) -> ArmPlan:
     for grasp in _side_grasps(ctx, side, name):
         try:
             q_pre = solve_tcp(ctx, side, TcpTarget(grasp.X_WPre))
-            solve_tcp(ctx, side, TcpTarget(grasp.X_WG), seed6=q_pre, ignore=[name, above])
+            solve_tcp(ctx, side, TcpTarget(grasp.X_WG), seed_arm=q_pre, ignore=[name, above])
             return move(ctx, side, q_pre, label=f"approach {name}")
         except PlanningError as err:
             reasons.append(err.reason)
@@ -479,8 +477,8 @@ def _tcp_track(ctx: SkillContext, plan: ArmPlan) -> np.ndarray:
     """(N, 3) TCP positions of `plan`'s arm along it (the other arm as it is now)."""
     q = ctx.q.copy()
     out = []
-    for q6 in plan.q:
-        q[ARM_SLICES[plan.side]] = q6
+    for q_arm in plan.q:
+        q[ctx.model.side_slice(plan.side)] = q_arm
         out.append(ctx.model.tcp_pose(q, plan.side).translation())
     return np.array(out)
 

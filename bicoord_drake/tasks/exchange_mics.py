@@ -22,7 +22,6 @@ from bicoord_drake.planning.grasps import (
     compound_grasps,
     symmetric_yaws,
 )
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
@@ -229,7 +228,7 @@ class ExchangeMics(Task):
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         sq_l, sq_r = scene.draws["square_left"], scene.draws["square_right"]
-        ctx = SkillContext(PlanningModel(scene))
+        ctx = SkillContext(view.planning_model())
 
         run = partial(follow, ctx, view)
 

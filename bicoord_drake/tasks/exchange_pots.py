@@ -30,7 +30,6 @@ from pydrake.all import RigidTransform, RotationMatrix
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import PotShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     Motion,
     SkillContext,
@@ -231,7 +230,7 @@ class ExchangePots(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        ctx = SkillContext(PlanningModel(scene), speed=SPEED)
+        ctx = SkillContext(view.planning_model(), speed=SPEED)
         for motion in plan_stages(ctx, self.spots(scene)):
             yield from follow(ctx, view, motion)
 

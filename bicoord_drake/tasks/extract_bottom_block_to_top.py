@@ -15,7 +15,6 @@ from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import Grasp, GraspParams, box_grasps, stack_target
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
@@ -214,7 +213,7 @@ class ExtractBottomBlockToTop(Task):
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         bottom, middle, top = BLOCKS
         ext, lifter = _roles(scene)
-        ctx = SkillContext(PlanningModel(scene))
+        ctx = SkillContext(view.planning_model())
 
         run = partial(follow, ctx, view)
 

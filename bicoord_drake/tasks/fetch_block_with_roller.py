@@ -27,7 +27,6 @@ from bicoord_drake.planning.grasps import (
     grasp_candidates,
     gripper_frame,
 )
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
     SkillContext,
@@ -226,7 +225,7 @@ class FetchBlockWithRoller(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        ctx = SkillContext(PlanningModel(scene), speed=SPEED)
+        ctx = SkillContext(view.planning_model(), speed=SPEED)
 
         run = partial(follow, ctx, view)
 

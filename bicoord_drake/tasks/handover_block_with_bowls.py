@@ -19,7 +19,6 @@ from bicoord_drake.planning.grasps import (
     bowl_rim_grasps,
     table_target,
 )
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
     SkillContext,
@@ -261,7 +260,7 @@ class HandoverBlockWithBowls(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        ctx = SkillContext(PlanningModel(scene), speed=SPEED, clearance=CLEARANCE)
+        ctx = SkillContext(view.planning_model(), speed=SPEED, clearance=CLEARANCE)
         left_xy = scene.draws["left_bowl_xy"]
         target_xy = scene.draws["target_xy"]
 

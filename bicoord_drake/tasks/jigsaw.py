@@ -10,7 +10,6 @@ import numpy as np
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import SkillContext, hold, merge, pick, place, retreat
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
@@ -161,7 +160,7 @@ class Jigsaw(Task):
         empty = [CELLS[i] for i in range(len(CELLS)) if i not in scene.draws["filled_cells"]]
         empty.sort(key=lambda xy: (xy[0], -xy[1]))  # left to right, far to near
         targets = {"left": empty[:2], "right": empty[2:][::-1]}
-        ctx = SkillContext(PlanningModel(scene))
+        ctx = SkillContext(view.planning_model())
 
         run = partial(follow, ctx, view)
 

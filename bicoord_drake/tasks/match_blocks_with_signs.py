@@ -23,7 +23,6 @@ from bicoord_drake.planning.grasps import (
     place_candidates,
 )
 from bicoord_drake.planning.ik import TcpTarget
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
@@ -261,7 +260,7 @@ class MatchBlocksWithSigns(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        ctx = SkillContext(PlanningModel(scene))
+        ctx = SkillContext(view.planning_model())
         order = [CUBOIDS[i] for i in placement_order(scene)]
         squares = {CUBOIDS[i]: scene.draws["square_xy"][i] for i in range(3)}
 
@@ -437,7 +436,7 @@ def _can_stand(ctx: SkillContext, X_TO: RigidTransform, goal: RigidTransform, sh
     for cand in place_candidates(X_TO, goal, shape, base=base, lift=0.06):
         try:
             q_above = solve_tcp(ctx, "right", TcpTarget(cand.X_WPre))
-            solve_tcp(ctx, "right", TcpTarget(cand.X_WG), seed6=q_above, env_clearance=0.0)
+            solve_tcp(ctx, "right", TcpTarget(cand.X_WG), seed_arm=q_above, env_clearance=0.0)
         except PlanningError:
             continue
         return True

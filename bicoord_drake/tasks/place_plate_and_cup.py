@@ -25,7 +25,6 @@ from bicoord_drake.planning.grasps import (
     stack_target,
     table_target,
 )
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
     SkillContext,
@@ -236,7 +235,7 @@ class PlacePlateAndCup(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        ctx = SkillContext(PlanningModel(scene))
+        ctx = SkillContext(view.planning_model())
         targets = [tuple(xy) for xy in scene.draws["target_xy"]]
         plates = _order(scene, PLATES, targets[0])  # the nearer plate to target 1 first
         cups = _order(scene, CUPS, targets[0])

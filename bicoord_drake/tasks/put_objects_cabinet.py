@@ -16,7 +16,6 @@ from bicoord_drake.models.cabinet import HANDLE_PART, CabinetDims, cabinet
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     SkillContext,
     carry_above,
@@ -194,7 +193,7 @@ class PutObjectsCabinet(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        ctx = SkillContext(PlanningModel(scene), speed=SPEED)
+        ctx = SkillContext(view.planning_model(), speed=SPEED)
 
         run = partial(follow, ctx, view)
 

@@ -15,7 +15,6 @@ from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import GraspParams, arm_base, bowl_rim_grasps
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
@@ -231,7 +230,7 @@ class StackBowls(Task):
         first = scene.draws["first_side"]
         second = other_side(first)
         b1, b2, b3, b4 = BOWLS
-        ctx = SkillContext(PlanningModel(scene))
+        ctx = SkillContext(view.planning_model())
 
         run = partial(follow, ctx, view)
 

@@ -24,7 +24,6 @@ from bicoord_drake.models.tools import (
     hand_brush,
 )
 from bicoord_drake.planning.grasps import Grasp, gripper_frame
-from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
     SkillContext,
@@ -305,7 +304,7 @@ class SweepBlock(Task):
 
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        ctx = SkillContext(PlanningModel(scene), speed=SPEED)
+        ctx = SkillContext(view.planning_model(), speed=SPEED)
 
         run = partial(follow, ctx, view)
 

@@ -144,7 +144,8 @@ def test_carry_together_holds_the_relative_tcp_pose_on_one_timing(ctx):
     # one profile for both arms: they start and stop moving on the same steps
     left, right = _moving(carry.q[:, :6]), _moving(carry.q[:, 6:])
     assert np.array_equal(left, right) and left.all()
-    assert np.max(np.abs(np.diff(carry.q, axis=0)) / ctx.dt / np.tile(ctx.limits6.velocity, 2)) <= 1
+    vmax = np.tile(ctx.arm_limits.velocity, 2)
+    assert np.max(np.abs(np.diff(carry.q, axis=0)) / ctx.dt / vmax) <= 1
     release = sk.release_together(ctx, ramp_steps=6)
     r = release.info["release_index"]
     assert np.array_equal(release.openings[:, 0], release.openings[:, 1])
@@ -278,9 +279,10 @@ def _pot_ctx(xy) -> sk.SkillContext:
 
 
 def test_the_other_wrist_branch_reaches_the_same_tcp_poses():
-    from bicoord_drake.planning.skills.bimanual import WRIST_ANGLE, on_wrist_branch
+    from bicoord_drake.planning.skills.bimanual import on_wrist_branch
 
     ctx = _pot_ctx((0.15, 0.05))
+    WRIST_ANGLE = ctx.model.embodiment.wrist_flip.pitch  # noqa: N806
     pair = sk.handle_pairs(ctx, "pot")[0]
     targets = {"left": TcpTarget(pair.left.X_WG), "right": TcpTarget(pair.right.X_WG)}
     q = ctx.ik.solve(targets, env_clearance=0.0, ignore=["pot"])

@@ -14,7 +14,6 @@ from bicoord_drake.planning.skills.drawer import (
     let_go_handle,
     slide_drawer,
 )
-from bicoord_drake.planning.timing import ARM_SLICES
 
 DIMS = CabinetDims(handle_x=0.06)
 
@@ -27,7 +26,7 @@ def scene() -> Scene:
 
 def _tcp_path(ctx, side, plan) -> np.ndarray:
     q = np.repeat(ctx.q[None], plan.num_steps, 0)
-    q[:, ARM_SLICES[side]] = plan.q
+    q[:, ctx.model.side_slice(side)] = plan.q
     return np.array([ctx.model.tcp_pose(x, side).translation() for x in q])
 
 

@@ -106,7 +106,7 @@ def test_tcp_deviation_tells_a_descent_from_an_arc():
     X = ctx.model.tcp_pose(ctx.q, "right")
     above = sk.solve_tcp(ctx, "right", TcpTarget(X))
     lower = RigidTransform(X.rotation(), X.translation() - [0, 0, 0.08])
-    below = sk.solve_tcp(ctx, "right", TcpTarget(lower), seed6=above)
+    below = sk.solve_tcp(ctx, "right", TcpTarget(lower), seed_arm=above)
     assert sk.tcp_deviation(ctx, "right", above, below) < 0.01
     swung = above.copy()
     swung[0] += 1.6  # the waist turns: the TCP sweeps an arc between the same kind of poses
@@ -163,7 +163,7 @@ def test_pour_turns_the_bowl_about_its_rim_and_back():
     ]
     assert len(fixed) == 1
     speed = np.abs(np.diff(pour.q, axis=0)) / ctx.dt
-    assert np.all(speed <= ctx.limits6.velocity + 1e-9)
+    assert np.all(speed <= ctx.arm_limits.velocity + 1e-9)
     with pytest.raises(PlanningError) as info:
         sk.pour(ctx, "left", np.radians(170))
     assert info.value.reason == "pour_failed"

@@ -15,7 +15,6 @@ from bicoord_drake.planning.throwing import (
     throw_release,
 )
 from bicoord_drake.planning.timing import (
-    ARM_SLICES,
     CONTROL_DT,
     JointLimits,
     TimedTrajectory,
@@ -89,7 +88,7 @@ def test_limits_from_embodiment_tile_and_scale(embodiment):
     assert np.allclose(slow.velocity, 0.5 * lim.velocity)
     assert np.allclose(slow.acceleration, 0.25 * lim.acceleration)
     assert np.allclose(slow.jerk, 0.125 * lim.jerk)
-    assert np.array_equal(lim.select(ARM_SLICES["right"]).lower, lim.lower[6:])
+    assert np.array_equal(lim.arm("right").lower, lim.lower[6:])
     with pytest.raises(ValueError):
         lim.scaled(0.0)
 
@@ -190,7 +189,7 @@ def test_concatenate_requires_continuity(limits):
 @pytest.mark.parametrize("seed", range(8))
 def test_synchronize_stretches_the_faster_arm(seed, limits):
     rng = np.random.default_rng(200 + seed)
-    lim = limits.select(ARM_SLICES["left"])
+    lim = limits.arm("left")
     fast_path = random_path(rng, lim, 2)
     fast_path[1] = fast_path[0] + 0.2 * (fast_path[1] - fast_path[0])
     slow_path = random_path(rng, lim, 4)
@@ -207,8 +206,8 @@ def test_synchronize_stretches_the_faster_arm(seed, limits):
 @pytest.mark.parametrize("seed", range(8))
 def test_rendezvous_arrives_together(seed, limits):
     rng = np.random.default_rng(300 + seed)
-    left_path = random_path(rng, limits.select(ARM_SLICES["left"]), int(rng.integers(2, 4)))
-    right_path = random_path(rng, limits.select(ARM_SLICES["right"]), int(rng.integers(2, 4)))
+    left_path = random_path(rng, limits.arm("left"), int(rng.integers(2, 4)))
+    right_path = random_path(rng, limits.arm("right"), int(rng.integers(2, 4)))
     traj = rendezvous(left_path, right_path, limits)
     assert traj.n == 12
     assert_within_limits(traj, limits)
@@ -226,8 +225,8 @@ def test_rendezvous_arrives_together(seed, limits):
 
 def test_rendezvous_too_early_is_a_planning_error(limits):
     rng = np.random.default_rng(7)
-    left = random_path(rng, limits.select(ARM_SLICES["left"]), 2)
-    right = random_path(rng, limits.select(ARM_SLICES["right"]), 2)
+    left = random_path(rng, limits.arm("left"), 2)
+    right = random_path(rng, limits.arm("right"), 2)
     with pytest.raises(PlanningError) as err:
         rendezvous(left, right, limits, arrive_at=0.1)
     assert err.value.reason == "timing_infeasible"

@@ -15,13 +15,13 @@ from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.skills.core import ArmPlan, SkillContext
-from bicoord_drake.planning.timing import ARM_SLICES, time_path
+from bicoord_drake.planning.timing import time_path
 
 
 def move(
     ctx: SkillContext,
     side: str,
-    q6_goal: np.ndarray,
+    q_goal: np.ndarray,
     *,
     label: str = "move",
     ignore: Iterable[str] = (),
@@ -42,7 +42,7 @@ def move(
             f"{label}: both hands hold {together!r}; one arm cannot move alone (carry_together)",
         )
     start = ctx.q.copy()
-    goal = ctx.with_arm(side, np.asarray(q6_goal, float))
+    goal = ctx.with_arm(side, np.asarray(q_goal, float))
     if clearance is not None:
         ctx.model.set_padding(clearance * 0.8, 0.0)
     if straight:
@@ -57,7 +57,7 @@ def move(
         waypoints = plan_path(
             ctx.model, start, goal, arms=(side,), ignore=ignore, env_clearance=0.0, **kwargs
         )
-    traj = time_path(waypoints[:, ARM_SLICES[side]], ctx.limits6, ctx.dt)
+    traj = time_path(waypoints[:, ctx.model.side_slice(side)], ctx.arm_limits, ctx.dt)
     ctx.q = goal
     return ArmPlan(side, traj.q, np.full(len(traj.q), ctx.opening[side]), label=label)
 
@@ -79,10 +79,10 @@ def grip(
     steps = ctx.gripper_steps if ramp_steps is None else max(int(ramp_steps), ctx.gripper_steps)
     n = steps + settle_steps
     ramp = np.clip(np.arange(n + 1) / steps, 0, 1)
-    q6 = ctx.arm_q(side)
+    q_arm = ctx.arm_q(side)
     ctx.opening[side] = float(opening)
     return ArmPlan(
-        side, np.repeat(q6[None], n + 1, 0), start + ramp * (opening - start), label=label
+        side, np.repeat(q_arm[None], n + 1, 0), start + ramp * (opening - start), label=label
     )
 
 
@@ -91,15 +91,16 @@ def solve_tcp(
     side: str,
     target: TcpTarget,
     *,
-    seed6: np.ndarray | None = None,
+    seed_arm: np.ndarray | None = None,
     ignore: Iterable[str] = (),
     env_clearance: float | None = None,
     clearance: float | None = None,
 ) -> np.ndarray:
-    """Six joint angles of `side` reaching `target` with the other arm fixed."""
+    """The joint angles of `side` reaching `target` with the other arm fixed (IK seeded from
+    `seed_arm`, default: where the arm is)."""
     other = other_side(side)
-    seed = ctx.q.copy() if seed6 is None else ctx.with_arm(side, seed6)
-    q12 = ctx.ik.solve_single(
+    seed = ctx.q.copy() if seed_arm is None else ctx.with_arm(side, seed_arm)
+    q = ctx.ik.solve_single(
         side,
         target,
         ctx.arm_q(other),
@@ -108,7 +109,7 @@ def solve_tcp(
         env_clearance=ctx.env_clearance if env_clearance is None else env_clearance,
         ignore=ignore,
     )
-    return q12[ARM_SLICES[side]]
+    return q[ctx.model.side_slice(side)]
 
 
 def move_tcp(
@@ -124,20 +125,22 @@ def move_tcp(
 ) -> ArmPlan:
     """Move the TCP of `side` to `X_WT` (see :meth:`move`)."""
     target = TcpTarget(X_WT, free_axis=free_axis)
-    q6 = solve_tcp(ctx, side, target, ignore=ignore, clearance=clearance)
-    return move(ctx, side, q6, label=label, ignore=ignore, straight=straight, clearance=clearance)
+    q_arm = solve_tcp(ctx, side, target, ignore=ignore, clearance=clearance)
+    return move(
+        ctx, side, q_arm, label=label, ignore=ignore, straight=straight, clearance=clearance
+    )
 
 
 def tcp_deviation(
-    ctx: SkillContext, side: str, q6_a: np.ndarray, q6_b: np.ndarray, samples: int = 9
+    ctx: SkillContext, side: str, q_a: np.ndarray, q_b: np.ndarray, samples: int = 9
 ) -> float:
     """Largest distance (m) of the TCP from the straight segment between its ends along the
-    straight joint move q6_a -> q6_b of `side`. Two IK solutions on different branches make
+    straight joint move q_a -> q_b of `side`. Two IK solutions on different branches make
     a short Cartesian move (a descent onto a grasp) sweep a wide arc instead."""
     q = ctx.q.copy()
     points = []
     for s in np.linspace(0.0, 1.0, samples):
-        q[ARM_SLICES[side]] = (1 - s) * np.asarray(q6_a) + s * np.asarray(q6_b)
+        q[ctx.model.side_slice(side)] = (1 - s) * np.asarray(q_a) + s * np.asarray(q_b)
         points.append(ctx.model.tcp_pose(q, side).translation())
     a, b = points[0], points[-1]
     d = b - a
@@ -156,7 +159,7 @@ def lift(ctx: SkillContext, side: str, height: float) -> ArmPlan:
     return move_tcp(ctx, side, X_up, label="lift", straight=True)
 
 
-def retreat(ctx: SkillContext, side: str, q6: np.ndarray | None = None) -> ArmPlan:
-    """Back to `q6` (default: home) along a collision-free path."""
-    q6 = ctx.model.home[ARM_SLICES[side]] if q6 is None else q6
-    return move(ctx, side, q6, label="retreat")
+def retreat(ctx: SkillContext, side: str, q_arm: np.ndarray | None = None) -> ArmPlan:
+    """Back to `q_arm` (default: home) along a collision-free path."""
+    q_arm = ctx.model.home[ctx.model.side_slice(side)] if q_arm is None else q_arm
+    return move(ctx, side, q_arm, label="retreat")

@@ -49,7 +49,7 @@ from bicoord_drake.planning.skills.tracking import (
     TRACK_SPEED,
     path_parameter,
 )
-from bicoord_drake.planning.timing import ARM_SLICES, JointLimits, time_path
+from bicoord_drake.planning.timing import JointLimits, time_path
 
 #: Grasp pairs tried by :func:`pick_together` before giving up.
 MAX_PAIR_TRIES = 4
@@ -176,7 +176,7 @@ def grip_together(
 
 
 def _limits12(ctx: SkillContext) -> JointLimits:
-    return JointLimits.concat(ctx.limits6, ctx.limits6)
+    return JointLimits.concat(ctx.arm_limits, ctx.arm_limits)
 
 
 def _solve_pair(
@@ -218,7 +218,7 @@ def _straight_together(
     """Both arms along the straight joint segment to `q_goal`, one timing for both; each TCP
     must stay within MAX_LINE_DEVIATION of a straight line and the segment collision-free."""
     for side in SIDES:
-        sl = ARM_SLICES[side]
+        sl = ctx.model.side_slice(side)
         dev = tcp_deviation(ctx, side, ctx.q[sl], q_goal[sl])
         if dev > MAX_LINE_DEVIATION:
             raise PlanningError(
@@ -443,25 +443,25 @@ def release_together(
     return motion
 
 
-#: Indices, within one arm's six joints, of the forearm roll, the wrist angle and the wrist
-#: rotation (the wrist's roll-pitch-roll).
-FOREARM_ROLL, WRIST_ANGLE, WRIST_ROTATE = 3, 4, 5
-
-
-def on_wrist_branch(ctx: SkillContext, q12: np.ndarray, side: str, sign: float) -> np.ndarray:
-    """`q12` with `side`'s wrist angle of sign `sign`: if it has the other sign, the other
+def on_wrist_branch(ctx: SkillContext, q: np.ndarray, side: str, sign: float) -> np.ndarray:
+    """`q` with `side`'s wrist angle of sign `sign`: if it has the other sign, the other
     branch of the same TCP pose (forearm roll and wrist rotation turned half a turn, the wrist
-    angle negated; the wrist parts are symmetric, so the arm's geometry is unchanged). Raises
-    PlanningError("wrist_branch") when that wrist angle or roll is outside the joint limits."""
-    q = np.asarray(q12, dtype=float).copy()
-    base = ARM_SLICES[side].start
-    if q[base + WRIST_ANGLE] * sign >= 0:
+    angle negated; the wrist parts are symmetric, so the arm's geometry is unchanged). The
+    wrist's joints are the embodiment's ``wrist_flip``; an arm without one (``None``) has no
+    such branch and `q` is returned as it is. Raises PlanningError("wrist_branch") when that
+    wrist angle or roll is outside the joint limits."""
+    q = np.asarray(q, dtype=float).copy()
+    flip = ctx.model.embodiment.wrist_flip
+    if flip is None:
         return q
-    for j in (FOREARM_ROLL, WRIST_ROTATE):
+    base = ctx.model.side_slice(side).start
+    if q[base + flip.pitch] * sign >= 0:
+        return q
+    for j in (flip.first_roll, flip.second_roll):
         i = base + j
         q[i] -= np.pi if q[i] > 0 else -np.pi
         q[i] = np.clip(q[i], ctx.model.lower[i], ctx.model.upper[i])  # +-pi is at the limit
-    q[base + WRIST_ANGLE] = -q[base + WRIST_ANGLE]
+    q[base + flip.pitch] = -q[base + flip.pitch]
     if not ctx.model.within_limits(q):
         raise PlanningError("wrist_branch", f"the {side} wrist cannot take the other branch")
     return q

@@ -23,7 +23,7 @@ from bicoord_drake.models.layout import ActionLayout
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.ik import BimanualIK
 from bicoord_drake.planning.model import PlanningModel
-from bicoord_drake.planning.timing import ARM_SLICES, CONTROL_DT, JointLimits, TimedTrajectory
+from bicoord_drake.planning.timing import CONTROL_DT, JointLimits, TimedTrajectory
 
 #: Sub-samples checked between two control samples of a merged motion.
 MERGE_SUBSTEPS = 4
@@ -31,7 +31,7 @@ MERGE_SUBSTEPS = 4
 
 @dataclass
 class ArmPlan:
-    """One arm's motion on the control grid: q (N, 6), opening (N,), events by sample index."""
+    """One arm's motion on the control grid: q (N, n), opening (N,), events by sample index."""
 
     side: str
     q: np.ndarray
@@ -98,7 +98,8 @@ class ArmPlan:
 
 @dataclass
 class Motion:
-    """A two-arm motion on the control grid: q12 (N, 12), openings (N, 2) [left, right]."""
+    """A two-arm motion on the control grid: q (N, 2 n) [left n, right n], openings (N, 2)
+    [left, right]."""
 
     q: np.ndarray
     openings: np.ndarray
@@ -158,7 +159,8 @@ class SkillContext:
         self.dt = dt
         self.clearance = clearance
         self.env_clearance = env_clearance
-        self.limits6 = JointLimits.from_embodiment(model.embodiment, arms=1, speed=speed)
+        #: One arm's timing limits (the embodiment's, slowed by `speed`).
+        self.arm_limits = JointLimits.from_embodiment(model.embodiment, arms=1, speed=speed)
         self.q = model.home.copy()
         self.opening = {side: model.embodiment.home_opening for side in SIDES}
         self.speed = speed
@@ -172,12 +174,12 @@ class SkillContext:
     # ------------------------------------------------------------------ state
     def sync(
         self,
-        q12: np.ndarray,
+        q: np.ndarray,
         openings: dict[str, float] | None = None,
         object_poses: dict[str, RigidTransform] | None = None,
     ) -> None:
         """Adopt measured joint angles, commanded openings and free objects' poses."""
-        self.q = np.asarray(q12, dtype=float).copy()
+        self.q = np.asarray(q, dtype=float).copy()
         if openings:
             self.opening.update(openings)
         held = {h.name for h in self.model.held.values()}
@@ -198,13 +200,14 @@ class SkillContext:
             self.model.attach(held.name, side, self.q, X_WO=X_WO, together=together)
 
     def arm_q(self, side: str) -> np.ndarray:
-        """The six joint angles of `side` (a copy)."""
-        return self.q[ARM_SLICES[side]].copy()
+        """The joint angles of `side` (a copy)."""
+        return self.q[self.model.side_slice(side)].copy()
 
-    def with_arm(self, side: str, q6: np.ndarray) -> np.ndarray:
-        """Both arms' joint angles with `side`'s replaced by `q6` (the state is not changed)."""
+    def with_arm(self, side: str, q_arm: np.ndarray) -> np.ndarray:
+        """Both arms' joint angles with `side`'s replaced by `q_arm` (the state is not
+        changed)."""
         q = self.q.copy()
-        q[ARM_SLICES[side]] = q6
+        q[self.model.side_slice(side)] = q_arm
         return q
 
     @contextmanager
@@ -264,11 +267,11 @@ class SkillContext:
                     return False
         return True
 
-    def still(self, q12: np.ndarray | None = None, openings: dict | None = None) -> Motion:
-        """A one-sample motion: both arms at `q12` (default: now)."""
-        q12 = self.q if q12 is None else q12
+    def still(self, q: np.ndarray | None = None, openings: dict | None = None) -> Motion:
+        """A one-sample motion: both arms at `q` (default: now)."""
+        q = self.q if q is None else q
         o = self.opening if openings is None else openings
-        return Motion(np.array(q12, float)[None], np.array([[o["left"], o["right"]]], float))
+        return Motion(np.array(q, float)[None], np.array([[o["left"], o["right"]]], float))
 
     def sequence(self, parts: Sequence[dict[str, ArmPlan]], start: Motion) -> Motion:
         """`start` followed by each part in turn; in a part, an arm without a plan (or with the
@@ -280,18 +283,19 @@ class SkillContext:
             for k, side in enumerate(SIDES):
                 p = part.get(side)
                 if p is None:
-                    p = ArmPlan(side, motion.q[-1:, ARM_SLICES[side]], motion.openings[-1:, k])
+                    sl = self.model.side_slice(side)
+                    p = ArmPlan(side, motion.q[-1:, sl], motion.openings[-1:, k])
                 plans[side] = p.padded(n)
             motion = motion.then(combine(plans["left"], plans["right"]))
         return motion
 
     def motion_of(self, traj: TimedTrajectory, label: str, opening: float | None = None) -> Motion:
-        """A 12-DoF trajectory as a motion, grippers as they are (or all at `opening`)."""
+        """A two-arm trajectory as a motion, grippers as they are (or all at `opening`)."""
         o = [self.opening[s] if opening is None else opening for s in SIDES]
         return Motion(traj.q.copy(), np.tile(np.array(o, float), (len(traj.q), 1)), label=label)
 
     def arm_plan(self, side: str, traj: TimedTrajectory, label: str) -> ArmPlan:
-        """A 6-DoF trajectory of `side` as an arm plan, its gripper as it is."""
+        """A one-arm trajectory of `side` as an arm plan, its gripper as it is."""
         return ArmPlan(side, traj.q.copy(), np.full(len(traj.q), self.opening[side]), label=label)
 
 

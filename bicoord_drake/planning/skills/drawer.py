@@ -67,7 +67,7 @@ def grasp_handle(ctx: SkillContext, side: str, name: str, part: int) -> ArmPlan:
         saved = (ctx.q.copy(), dict(ctx.opening))
         try:
             q_pre = solve_tcp(ctx, side, TcpTarget(X_WPre))
-            q_grasp = solve_tcp(ctx, side, TcpTarget(X_WG), seed6=q_pre, ignore=[name])
+            q_grasp = solve_tcp(ctx, side, TcpTarget(X_WG), seed_arm=q_pre, ignore=[name])
             approach = move(ctx, side, q_pre, label="over the handle")
             ramp = np.clip(np.arange(approach.num_steps) / ctx.gripper_steps, 0, 1)
             approach.opening = approach.opening + ramp * (opening - approach.opening)
@@ -135,7 +135,7 @@ def let_go_handle(
     release = grip(ctx, side, handle_opening(ctx, bar.size[1]), label="let go of the handle")
     X = ctx.model.tcp_pose(ctx.q, side)
     up = RigidTransform(X.rotation(), X.translation() + [0.0, 0.0, rise])
-    q_up = solve_tcp(ctx, side, TcpTarget(up), seed6=ctx.arm_q(side), ignore=[name])
+    q_up = solve_tcp(ctx, side, TcpTarget(up), seed_arm=ctx.arm_q(side), ignore=[name])
     rise_plan = move(ctx, side, q_up, label="up from the handle", ignore=[name], straight=True)
     plan = release.then(rise_plan)
     plan.label = f"let go of {name}"

@@ -31,7 +31,7 @@ from bicoord_drake.planning.motion import plan_path
 from bicoord_drake.planning.skills.arm import grip, move_tcp
 from bicoord_drake.planning.skills.core import Motion, SkillContext
 from bicoord_drake.planning.skills.shapes import half_extent
-from bicoord_drake.planning.timing import ARM_SLICES, JointLimits, rendezvous, time_path
+from bicoord_drake.planning.timing import JointLimits, rendezvous, time_path
 
 #: The receiver's grasps of the object at a meeting, best first, given the object's pose there
 #: and the giver's TCP pose there. Each grasp's ``X_WG`` and ``X_WPre`` are used as they are.
@@ -198,7 +198,7 @@ def _meeting(ctx, giver, receiver, name, orientations, p_meet, clearance, receiv
                 q_pre = ctx.ik.solve_single(
                     receiver,
                     TcpTarget(grasp.X_WPre),
-                    q_meet[ARM_SLICES[giver]],
+                    q_meet[ctx.model.side_slice(giver)],
                     seed=q_meet,
                     clearance=clearance,
                     env_clearance=ctx.env_clearance,
@@ -232,26 +232,27 @@ def meet_motion(
     first (``info["rendezvous"]`` False). The context's state is not advanced."""
     start = ctx.q.copy()
     g_goal = start.copy()
-    g_goal[ARM_SLICES[giver]] = q_meet[ARM_SLICES[giver]]
+    g_goal[ctx.model.side_slice(giver)] = q_meet[ctx.model.side_slice(giver)]
     r_goal = start.copy()
-    r_goal[ARM_SLICES[receiver]] = q_pre[ARM_SLICES[receiver]]
+    r_goal[ctx.model.side_slice(receiver)] = q_pre[ctx.model.side_slice(receiver)]
     g_path = plan_path(ctx.model, start, g_goal, arms=(giver,), env_clearance=0.0)
     r_path = plan_path(ctx.model, start, r_goal, arms=(receiver,), env_clearance=0.0)
     r_path = np.vstack([r_path, q_meet[None]])
-    paths = {giver: g_path[:, ARM_SLICES[giver]], receiver: r_path[:, ARM_SLICES[receiver]]}
-    limits = JointLimits.concat(ctx.limits6, ctx.limits6)
+    cols = {side: ctx.model.side_slice(side) for side in (giver, receiver)}
+    paths = {giver: g_path[:, cols[giver]], receiver: r_path[:, cols[receiver]]}
+    limits = JointLimits.concat(ctx.arm_limits, ctx.arm_limits)
     traj = rendezvous(paths["left"], paths["right"], limits, ctx.dt)
     motion = ctx.motion_of(traj, "meet")
     if ctx.checked(motion, clearance * 0.8, 0.0):
         motion.info["rendezvous"] = True
         return motion
     # Fallback: the giver arrives first, then the receiver comes in.
-    g_plan = ctx.arm_plan(giver, time_path(paths[giver], ctx.limits6, ctx.dt), "give")
+    g_plan = ctx.arm_plan(giver, time_path(paths[giver], ctx.arm_limits, ctx.dt), "give")
     r_path = plan_path(
         ctx.model, g_goal, q_pre, arms=(receiver,), clearance=clearance, env_clearance=0.0
     )
-    r_path = np.vstack([r_path, q_meet[None]])[:, ARM_SLICES[receiver]]
-    r_plan = ctx.arm_plan(receiver, time_path(r_path, ctx.limits6, ctx.dt), "receive")
+    r_path = np.vstack([r_path, q_meet[None]])[:, cols[receiver]]
+    r_plan = ctx.arm_plan(receiver, time_path(r_path, ctx.arm_limits, ctx.dt), "receive")
     motion = ctx.sequence([{giver: g_plan}, {receiver: r_plan}], ctx.still(start))
     if not ctx.checked(motion, clearance * 0.8, 0.0):
         raise PlanningError("arm_conflict", f"{giver} and {receiver} collide on the way")

@@ -100,9 +100,9 @@ def pick(
 
 def _grasp_keyframes(ctx: SkillContext, side: str, name: str, grasp: Grasp, lift: float):
     q_pre = solve_tcp(ctx, side, TcpTarget(grasp.X_WPre))
-    q_grasp = solve_tcp(ctx, side, TcpTarget(grasp.X_WG), seed6=q_pre, ignore=[name])
+    q_grasp = solve_tcp(ctx, side, TcpTarget(grasp.X_WG), seed_arm=q_pre, ignore=[name])
     X_lift = RigidTransform(grasp.X_WG.rotation(), grasp.X_WG.translation() + [0, 0, lift])
-    q_lift = solve_tcp(ctx, side, TcpTarget(X_lift), seed6=q_grasp, ignore=[name])
+    q_lift = solve_tcp(ctx, side, TcpTarget(X_lift), seed_arm=q_grasp, ignore=[name])
     _check_straight(ctx, side, (q_pre, q_grasp, q_lift), ("descend", "lift"))
     return q_pre, q_grasp, q_lift
 
@@ -153,12 +153,12 @@ def place(
                 ctx,
                 side,
                 TcpTarget(cand.X_WG),
-                seed6=q_above,
+                seed_arm=q_above,
                 ignore=ignore + [held.name],
                 env_clearance=0.0,
             )
             X_away = RigidTransform(cand.X_WG.rotation(), cand.X_WG.translation() + [0, 0, retreat])
-            q_away = solve_tcp(ctx, side, TcpTarget(X_away), seed6=q_place, ignore=[held.name])
+            q_away = solve_tcp(ctx, side, TcpTarget(X_away), seed_arm=q_place, ignore=[held.name])
             _check_straight(ctx, side, (q_above, q_place, q_away), ("lower", "back off"))
         except PlanningError as err:
             reasons.append(err.reason)

@@ -34,7 +34,7 @@ from bicoord_drake.planning.throwing import (
     throw_and_catch,
     throw_release,
 )
-from bicoord_drake.planning.timing import ARM_SLICES, GRAVITY, JointLimits, time_path
+from bicoord_drake.planning.timing import GRAVITY, JointLimits, time_path
 
 #: Throws: squeeze (N) kept on the object from the windup to the release. A light grip leaves
 #: almost no elastic energy in the pads, so opening does not kick the object sideways.
@@ -158,9 +158,9 @@ def _toss(
     windup = move(ctx, thrower, q_wind, label="windup")
     loosen = grip(ctx, thrower, soft, settle_steps=2, label="loosen")
     c_goal = ctx.q.copy()
-    c_goal[ARM_SLICES[catcher]] = q_catch
+    c_goal[ctx.model.side_slice(catcher)] = q_catch
     c_path = plan_path(ctx.model, ctx.q, c_goal, arms=(catcher,), env_clearance=0.0)
-    c_traj = time_path(c_path[:, ARM_SLICES[catcher]], ctx.limits6, ctx.dt)
+    c_traj = time_path(c_path[:, ctx.model.side_slice(catcher)], ctx.arm_limits, ctx.dt)
     flight = RELEASE_DELAY + t_rim  # release sample -> the object reaches the rim
     kwargs = {"margin": margin, "start": start, "hold_after": hold_after}
     try:
@@ -341,13 +341,13 @@ def _throw(
     return plan, q_wind, soft
 
 
-def _throw_jacobian(ctx: SkillContext, side: str, q12: np.ndarray, p_GQ: np.ndarray) -> np.ndarray:
-    """(6, 6) Jacobian of a throw: the gripper's angular velocity about its own x
+def _throw_jacobian(ctx: SkillContext, side: str, q: np.ndarray, p_GQ: np.ndarray) -> np.ndarray:
+    """(6, n) Jacobian of a throw (n arm joints): the gripper's angular velocity about its own x
     (approach), y (finger) and z axes, then the velocity of point Q (fixed in the gripper
     link) in the world."""
     plant = ctx.model.plant
     context = plant.CreateDefaultContext()
-    plant.SetPositions(context, ctx.model.full_q(q12))
+    plant.SetPositions(context, ctx.model.full_q(q))
     frame = ctx.model.gripper_bodies[side].body_frame()
     arm = ctx.model.arms[side]
     v_indices = np.array(

@@ -18,7 +18,7 @@ from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.skills.arm import move_tcp
 from bicoord_drake.planning.skills.core import ArmPlan, SkillContext
-from bicoord_drake.planning.timing import ARM_SLICES, JointLimits, time_path
+from bicoord_drake.planning.timing import JointLimits, time_path
 
 #: Cartesian skills (pour, push): TCP speed (m/s) and rotation rate (rad/s) at speed = 1.
 TRACK_SPEED = 0.25
@@ -62,13 +62,13 @@ def track(
                 "start_in_collision",
                 f"{label}: the {side} arm starts {start_depth * 1e3:.1f} mm deep",
             )
-        q6 = _track_samples(ctx, side, pose_at, duration, q_other, ignore, label)
+        q_arm = _track_samples(ctx, side, pose_at, duration, q_other, ignore, label)
         ctx.model.set_padding(ctx.clearance / 2, 0.0)
-        q = [ctx.with_arm(side, x) for x in q6]
+        q = [ctx.with_arm(side, x) for x in q_arm]
         if not _path_free(ctx, q):
             raise PlanningError("path_in_collision", f"{label}: the {side} path collides")
     ctx.q = q[-1].copy()
-    return ArmPlan(side, q6, np.full(len(q6), ctx.opening[side]), label=label)
+    return ArmPlan(side, q_arm, np.full(len(q_arm), ctx.opening[side]), label=label)
 
 
 def _path_free(ctx: SkillContext, q: Sequence[np.ndarray]) -> bool:
@@ -104,7 +104,7 @@ def path_parameter(duration: float, dt: float) -> np.ndarray:
 def _track_samples(
     ctx: SkillContext, side, pose_at, duration, q_other, ignore, label
 ) -> np.ndarray:
-    """(N, 6) joint samples of :meth:`_track`, slowed until the joints keep up."""
+    """(N, n) joint samples of :meth:`_track`, slowed until the joints keep up."""
     for _ in range(4):
         s = path_parameter(duration, ctx.dt)
         q, prev = [ctx.q.copy()], ctx.q.copy()
@@ -121,12 +121,12 @@ def _track_samples(
                 restarts=3,
             )
             q.append(prev)
-        q6 = np.array(q)[:, ARM_SLICES[side]]
-        if np.max(np.abs(np.diff(q6, axis=0))) > TRACK_MAX_STEP:
+        q_arm = np.array(q)[:, ctx.model.side_slice(side)]
+        if np.max(np.abs(np.diff(q_arm, axis=0))) > TRACK_MAX_STEP:
             raise PlanningError("track_discontinuous", f"{label}: IK switched branches")
-        speed = np.max(np.abs(np.diff(q6, axis=0)) / ctx.dt / ctx.limits6.velocity)
+        speed = np.max(np.abs(np.diff(q_arm, axis=0)) / ctx.dt / ctx.arm_limits.velocity)
         if speed <= 1.0:
-            return q6
+            return q_arm
         duration *= speed * 1.1
     raise PlanningError("track_too_fast", f"{label}: the joints cannot follow the path")
 

@@ -30,11 +30,11 @@ def first_step_in_zone(
 ) -> int:
     """The first sample of `plan` whose TCP is within `radius` (xy, m) of `center_xy` (or,
     with ``inside=False``, outside it); the plan's length if there is none."""
-    q12 = np.array(ctx.q, dtype=float)
+    q_both = np.array(ctx.q, dtype=float)
     cols = ctx.model.side_slice(plan.side)
     for i, q in enumerate(plan.q):
-        q12[cols] = q
-        p = ctx.model.tcp_pose(q12, plan.side).translation()
+        q_both[cols] = q
+        p = ctx.model.tcp_pose(q_both, plan.side).translation()
         if (np.hypot(p[0] - center_xy[0], p[1] - center_xy[1]) <= radius) == inside:
             return i
     return plan.num_steps
