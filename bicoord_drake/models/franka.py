@@ -28,7 +28,11 @@ Frames. The links ``link0`` (base) to ``link6`` carry Franka's DH frames, so the
 used as published. Link 7 and the hand are one rigid body, ``hand`` (the gripper link; the
 Franka Hand is bolted to the flange), whose frame follows this project's gripper convention: its
 origin is the flange centre, x along the fingers (Franka's hand z), y the direction the left
-finger opens (Franka's hand y), z = x cross y (Franka's hand -x). Joint 7 turns it about its x.
+finger opens (Franka's hand -y; the fingers are symmetric), z = x cross y (Franka's hand x).
+Joint 7 turns it about its x. With y = the hand's -y, Franka's ready pose (q7 = pi / 4) holds
+the gripper as the ViperX holds it at home (y = world -x, z away from the robot), with joint 7
+able to turn the hand 2.1 rad one way and 3.7 rad the other: every top-down grasp yaw is a
+quarter turn or less from a joint-7 angle within the limits.
 """
 
 from __future__ import annotations
@@ -112,24 +116,26 @@ FINGER_SPEED = 0.2
 # --------------------------------------------------------------------------------------------
 
 #: Base poses: both bases face +y (at q = 0 joint 1 points the arm along +y) at table-top
-#: height, 0.30 m either side of the centre line, their joint-1 axes 2 cm behind the table's
-#: back edge (y = -0.35); the base plate (link0: 0.17 m behind to 0.075 m in front of the axis)
-#: sits on the table's back edge. That far forward because a Panda with its gripper pointing
-#: straight down reaches 0.79 m from its joint-1 axis (0.09-0.79 m at 1 cm above its base,
-#: 0.23-0.80 m at 20 cm; IK, benchmarks/franka_reach.md): from (+-0.30, -0.37) the far corners
-#: (+-0.6, 0.35) and the far middle (0, 0.35) are 0.78 m away, and x = +-0.30 makes those two
-#: equally far. Together the arms then reach the whole table top at 0.76-0.95 m, and both
-#: reach the centre (every point within 0.15 m of it).
+#: height, 0.30 m either side of the centre line, their joint-1 axes 0.20 m behind the table's
+#: back edge (y = -0.35). A Panda with its gripper pointing straight down reaches 0.79 m from
+#: its joint-1 axis, but close to its base only with the elbow folded to its limit and the hand
+#: against its own column: at y = -0.37 (the first choice, whole-table reach) the experts'
+#: grasps 0.12-0.25 m in front of a base (balance_roller's roller lies at y = -0.25) found no
+#: collision-free IK, or only at joint limits from which a carry could not continue. From
+#: y = -0.55 every task object (y in [-0.25, 0.16], |x| <= 0.44) is 0.3-0.75 m from the arm
+#: that takes it, the arms together reach the table up to y = 0.15 over its whole width (10 cm
+#: grid at 0.76 and 0.95 m) and both reach its centre; the back strip y > 0.15, which no task
+#: uses, is out of reach.
 BASE_X = 0.30
-BASE_Y = -0.37
+BASE_Y = -0.55
 BASE_Z = 0.75
 #: Home: each arm in its own vertical plane (q1 = q3 = q5 = 0: the two homes are mirror images,
 #: 0.6 m apart), the gripper pointing straight down (q6 = q2 - q4) 0.40 m in front of its base
 #: (y = 0.03) at z = 1.05 m (0.30 m above the table; the hand's top at 1.25 m), open; the
-#: elbow folded as in Franka's ready pose. q7 = -3 pi / 4 undoes the -45 deg hand mount so that
-#: the fingers open along world x and the gripper frame is oriented as the ViperX's at home
-#: (y = world -x, z = away from the robot).
-HOME = (0.0, -0.42, 0.0, -2.58, 0.0, 2.16, -3 * np.pi / 4)
+#: elbow folded as in Franka's ready pose. q7 = pi / 4 (also as in the ready pose) undoes the
+#: -45 deg hand mount so that the fingers open along world x and the gripper frame is oriented
+#: as the ViperX's at home (y = world -x, z = away from the robot).
+HOME = (0.0, -0.42, 0.0, -2.58, 0.0, 2.16, np.pi / 4)
 #: PD gains of the joint actuators (MuJoCo Menagerie's panda.xml position actuators: kp 4500,
 #: 4500, 3500, 3500, 2000, 2000, 2000 N m/rad with kd = kp / 10) and viscous joint damping
 #: (Menagerie's 1 N m s/rad).
@@ -163,8 +169,8 @@ def _rpy(R: np.ndarray) -> Vec3:
     )
 
 
-#: The gripper link frame G in Franka's hand frame H: x_G = z_H, y_G = y_H, z_G = -x_H.
-R_HAND_G = pose_matrix((0, 0, 0), (0, -np.pi / 2, 0))[:3, :3]
+#: The gripper link frame G in Franka's hand frame H: x_G = z_H, y_G = -y_H, z_G = x_H.
+R_HAND_G = pose_matrix((0, 0, 0), (np.pi, -np.pi / 2, 0))[:3, :3]
 #: ... and in link 7's frame: the flange offset, the -45 deg hand mount, then R_HAND_G.
 X_LINK7_G = pose_matrix((0, 0, FLANGE_D), (0, 0, HAND_YAW))
 X_LINK7_G[:3, :3] = X_LINK7_G[:3, :3] @ R_HAND_G

@@ -131,10 +131,12 @@ class BimanualIK:
         ignore: Iterable[str] = (),
         q_fixed: Mapping[str, np.ndarray] | None = None,
         rng: np.random.Generator | int | None = 0,
+        nominal: np.ndarray | None = None,
     ) -> np.ndarray:
         """Joint angles q (both arms) reaching `targets` ({side: TcpTarget}) with `clearance`
         (m) between the arms and `env_clearance` (m) to everything else; objects in `ignore`
-        are not checked. Arms in `q_fixed` ({side: its n angles}) stay put. Raises PlanningError."""
+        are not checked. Arms in `q_fixed` ({side: its n angles}) stay put. `nominal` replaces the
+        pose the cost pulls toward for this call. Raises PlanningError."""
         unknown = set(targets) - set(SIDES)
         if unknown or not targets:
             raise ValueError(f"targets must be keyed by 'left'/'right', got {sorted(targets)}")
@@ -142,9 +144,15 @@ class BimanualIK:
         if set(q_fixed) & set(targets):
             raise ValueError("an arm cannot both have a target and be fixed")
         rng = np.random.default_rng(rng)
-        seeds = self._seeds(seed, q_fixed)
-        with self.model.ignoring(ignore), self.model.padded(clearance, env_clearance):
-            return self._solve(targets, clearance, env_clearance, seeds, restarts, q_fixed, rng)
+        saved = self.nominal
+        if nominal is not None:
+            self.nominal = np.asarray(nominal, dtype=float)
+        try:
+            seeds = self._seeds(seed, q_fixed)
+            with self.model.ignoring(ignore), self.model.padded(clearance, env_clearance):
+                return self._solve(targets, clearance, env_clearance, seeds, restarts, q_fixed, rng)
+        finally:
+            self.nominal = saved
 
     def solve_single(
         self,

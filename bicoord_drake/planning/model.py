@@ -233,6 +233,12 @@ class PlanningModel:
         """Length of a planning configuration: both arms' joints (2 n)."""
         return 2 * self.arm_joints
 
+    @property
+    def redundant(self) -> bool:
+        """Whether an arm has more joints than a TCP pose has degrees of freedom (six): its
+        IK solutions then form a continuum, and the IK cost picks one."""
+        return self.arm_joints > 6
+
     def full_q(self, q: np.ndarray) -> np.ndarray:
         """Plant positions for planning joints `q` (fingers at the current openings)."""
         q_full = self._q_full.copy()

@@ -97,9 +97,12 @@ def solve_tcp(
     clearance: float | None = None,
 ) -> np.ndarray:
     """The joint angles of `side` reaching `target` with the other arm fixed (IK seeded from
-    `seed_arm`, default: where the arm is)."""
+    `seed_arm`, default: where the arm is). A redundant arm (more than six joints) given a
+    `seed_arm` - a keyframe continuing from another - also stays near it rather than near the
+    nominal pose, so the two keyframes lie on one branch of its self-motion."""
     other = other_side(side)
     seed = ctx.q.copy() if seed_arm is None else ctx.with_arm(side, seed_arm)
+    near = seed if seed_arm is not None and ctx.model.redundant else None
     q = ctx.ik.solve_single(
         side,
         target,
@@ -108,6 +111,7 @@ def solve_tcp(
         clearance=ctx.clearance if clearance is None else clearance,
         env_clearance=ctx.env_clearance if env_clearance is None else env_clearance,
         ignore=ignore,
+        nominal=near,
     )
     return q[ctx.model.side_slice(side)]
 

@@ -188,7 +188,10 @@ def _solve_pair(
     ignore: Iterable[str] = (),
     env_clearance: float | None = None,
     restarts: int = 10,
+    continues: bool = False,
 ) -> np.ndarray:
+    """Both TCPs at the targets, seeded from `seed`; a redundant arm pair whose keyframe
+    `continues` from `seed` (a descent from a pre-grasp) stays near it (see ``solve_tcp``)."""
     targets = {"left": TcpTarget(X_left), "right": TcpTarget(X_right)}
     return ctx.ik.solve(
         targets,
@@ -197,6 +200,7 @@ def _solve_pair(
         seed=seed,
         ignore=ignore,
         restarts=restarts,
+        nominal=seed if continues and ctx.model.redundant else None,
     )
 
 
@@ -371,6 +375,7 @@ def pick_together(
                     seed=q_pre,
                     ignore=[name],
                     env_clearance=0.0,
+                    continues=True,
                 )
                 for side, sign in (wrist or {}).items():
                     q_pre = on_wrist_branch(ctx, q_pre, side, sign)
