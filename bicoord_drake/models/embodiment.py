@@ -144,6 +144,12 @@ class GripperSpec(BaseModel):
         """Finger joint position -> opening in [0, 1] (not clipped: a blocked finger reads > 0)."""
         return (finger_position - self.finger_min) / (self.finger_max - self.finger_min)
 
+    def opening_for_gap(self, gap: float) -> float:
+        """The opening command whose jaw gap (between the pads) is `gap` m, clipped to
+        [0, 1] and rounded to 1e-6 (far below what the fingers resolve): how an expert asks
+        for a jaw width rather than for one gripper's fraction of its stroke."""
+        return round(float(np.clip(self.opening(gap / 2), 0.0, 1.0)), 6)
+
 
 class WristFlip(BaseModel):
     """A roll-pitch-roll wrist whose parts are symmetric about the pitch axis: turning both

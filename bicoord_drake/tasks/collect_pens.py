@@ -72,8 +72,9 @@ TIP_CLEARANCE = 0.006
 INSERT = 0.025
 #: The pen is carried over the holder this much (m) higher and lowered straight from there.
 LOWER = 0.06
-#: Release opening (the fingers part to about 5 cm, clear of the pens already standing).
-RELEASE_OPENING = 0.55
+#: Release jaw gap (m): the fingers part to about 5 cm, clear of the pens already standing
+#: (the robot's gripper turns it into an opening command).
+RELEASE_GAP = 0.0531
 #: Candidate tip points in the holder: its centre and two rings around it (radii, m); the
 #: one farthest from the pens already in it is used.
 DROP_RINGS = (0.012, 0.022)
@@ -344,7 +345,7 @@ def _insert(ctx: SkillContext, side: str) -> ArmPlan:
         goal,
         approach_height=LOWER,
         retreat=0.05,
-        opening=RELEASE_OPENING,
+        opening=ctx.model.embodiment.arm.gripper.opening_for_gap(RELEASE_GAP),
         yaws=yaws,
     )
     plan.label = f"put {held.name} in the holder"

@@ -20,6 +20,7 @@ from bicoord_drake.models.scene import TABLE_TOP, Scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import (
     Grasp,
+    GraspParams,
     arm_base,
     cylinder_grasps,
     stack_target,
@@ -301,13 +302,17 @@ class PlacePlateAndCup(Task):
 def cup_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
     """Top-down grasps of an upright cup across its outside, pads on the outer wall from the
     rim down (a rim grasp puts a finger inside the cup, which caught the inner wall and
-    lifted the cup again when backing off after the release), best first."""
+    lifted the cup again when backing off after the release), best first. The pads clear the
+    cup by the usual 8 mm per side on the way down, less (down to 1 mm short of the jaw's
+    full stroke) for a gripper that opens little wider than the cup."""
     X_WO = ctx.model.object_pose(name)
     X_WC = X_WO @ RigidTransform([0.0, 0.0, CUP.height / 2])  # the solid's centre
     solid = CylinderShape(radius=CUP.radius, length=CUP.height)
     gripper = ctx.model.embodiment.arm.gripper
     base = arm_base(ctx.model.embodiment, side)
-    grasps = cylinder_grasps(X_WC, solid, gripper, base=base, kinds=("top",))
+    margin = min(GraspParams().margin, gripper.finger_max - CUP.radius - 0.001)
+    params = GraspParams(margin=margin)
+    grasps = cylinder_grasps(X_WC, solid, gripper, base=base, kinds=("top",), params=params)
     X_OW = X_WO.inverse()
     return [replace(g, X_OG=X_OW @ g.X_WG) for g in grasps]
 

@@ -64,11 +64,12 @@ OPEN, OPENED, CLOSED = 0.16, 0.12, 0.02
 #: Where each box goes in the drawer (drawer frame, xy): box 1 on the right, box 2 on the left,
 #: both in the middle of the part that is out of the cabinet.
 SLOTS = ((0.055, 0.004), (-0.055, 0.004))
-#: Expert: joint speed scale; the jaw opening while placing into the drawer (its fingers
-#: clear the side walls); how high the left hand backs off after a placement (its fingers
-#: out over the drawer's rim before the drawer moves).
+#: Expert: joint speed scale; the jaw gap (m) while placing into the drawer (its fingers
+#: clear the side walls; the robot's gripper turns it into an opening); how high the left
+#: hand backs off after a placement (its fingers out over the drawer's rim before the drawer
+#: moves).
 SPEED = 0.7
-PLACE_OPENING = 0.7
+PLACE_GAP = 0.0654
 BACK_OFF = 0.10
 #: Box 1 is carried this high (m) over its slot while the drawer opens under it (above the
 #: rim of the drawer's front wall as it passes).
@@ -246,13 +247,19 @@ def in_drawer(box: str):
 def narrow_jaw(ctx: SkillContext) -> None:
     """Plan the left hand's moves with its jaw as wide as it gets while it holds a box (the
     release opening, not wide open: its fingers go between the drawer's walls)."""
-    ctx.model.set_gripper("left", PLACE_OPENING)
+    ctx.model.set_gripper("left", place_opening(ctx))
 
 
 def put_in(ctx: SkillContext, k: int):
     """The left hand places the box it holds at slot `k` of the drawer, releasing with a jaw
     that clears the walls (as planned: :func:`narrow_jaw`), and backs off over the rim."""
-    return place(ctx, "left", slot_pose(ctx, k), opening=PLACE_OPENING, retreat=BACK_OFF)
+    opening = place_opening(ctx)
+    return place(ctx, "left", slot_pose(ctx, k), opening=opening, retreat=BACK_OFF)
+
+
+def place_opening(ctx: SkillContext) -> float:
+    """The opening command of this robot's gripper for the PLACE_GAP jaw."""
+    return ctx.model.embodiment.arm.gripper.opening_for_gap(PLACE_GAP)
 
 
 def slot_pose(ctx: SkillContext, k: int) -> RigidTransform:
