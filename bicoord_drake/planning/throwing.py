@@ -1,6 +1,6 @@
 """Throw and catch timing on the control-step grid (see :mod:`bicoord_drake.planning.timing`).
 
-- :func:`throw_release` - 6-DoF Ruckig from rest to a release state with non-zero target
+- :func:`throw_release` - one-arm (n-DoF) Ruckig from rest to a release state with non-zero target
   velocity, a short constant-velocity coast around the release step, then a velocity-interface
   Ruckig that brakes to rest; the release lies exactly on a control step.
 - :func:`release_joint_velocity` - the joint velocity that gives a TCP velocity.
@@ -249,7 +249,7 @@ def schedule_catch(
 
 @dataclass(frozen=True)
 class ThrowCatchPlan:
-    """Two-arm throw and catch on one 12-DoF trajectory."""
+    """Two-arm throw and catch on one two-arm (2 n-DoF) trajectory."""
 
     trajectory: TimedTrajectory
     throw: ThrowPlan
@@ -267,8 +267,8 @@ def throw_and_catch(
     start: Literal["early", "late"] = "early",
     hold_after: float = 0.5,
 ) -> ThrowCatchPlan:
-    """Combine a throwing arm's :class:`ThrowPlan` and the catcher's 6-DoF trajectory (to its
-    catching pose) into one 12-DoF trajectory; the catcher is in place `margin` s before the
+    """Combine a throwing arm's :class:`ThrowPlan` and the catcher's one-arm trajectory (to its
+    catching pose) into one two-arm trajectory; the catcher is in place `margin` s before the
     predicted landing, and both then hold for at least `hold_after` s past the landing."""
     schedule = schedule_catch(throw.release_time, flight_time, catcher, margin=margin, start=start)
     catcher = catcher.delayed(schedule.start_index)

@@ -7,8 +7,8 @@ joint paths and ruckig timing. Every skill is a function whose first argument is
 clearances), which it advances. :func:`merge` runs two arm plans at the same time and checks the
 combined two-arm motion against collisions sample by sample; if the arms would meet it delays
 one of them until they do not, so both arms act together whenever that is safe. The result, a
-:class:`Motion`, turns into the actions the station takes (its layout; 14 numbers for two
-6-joint arms).
+:class:`Motion`, turns into the actions the station takes (its layout: 2 (n + 1) numbers for
+two n-joint arms, 14 for the ViperX pair).
 
 ========================  ===================================================================
 module                    skills

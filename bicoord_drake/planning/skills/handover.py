@@ -228,24 +228,38 @@ def meet_motion(
     clearance: float,
 ) -> Motion:
     """Both arms from where they are to the meeting `q_meet` (the receiver through its
-    pregrasp `q_pre`), arriving at the same control step; if that collides, the giver arrives
-    first (``info["rendezvous"]`` False). The context's state is not advanced."""
+    pregrasp `q_pre`), arriving at the same control step. If that collides, or the receiver's
+    pregrasp collides with the giver where it is now, the giver arrives first
+    (``info["rendezvous"]`` False); if the giver's meeting pose collides with the receiver
+    where it is now, the receiver goes to its pregrasp first (:func:`_receiver_first`). The
+    context's state is not advanced."""
     start = ctx.q.copy()
     g_goal = start.copy()
     g_goal[ctx.model.side_slice(giver)] = q_meet[ctx.model.side_slice(giver)]
     r_goal = start.copy()
     r_goal[ctx.model.side_slice(receiver)] = q_pre[ctx.model.side_slice(receiver)]
-    g_path = plan_path(ctx.model, start, g_goal, arms=(giver,), env_clearance=0.0)
-    r_path = plan_path(ctx.model, start, r_goal, arms=(receiver,), env_clearance=0.0)
-    r_path = np.vstack([r_path, q_meet[None]])
+    try:
+        g_path = plan_path(ctx.model, start, g_goal, arms=(giver,), env_clearance=0.0)
+    except PlanningError as err:
+        if err.reason != "goal_in_collision":
+            raise
+        return _receiver_first(ctx, giver, receiver, q_meet, q_pre, clearance)
     cols = {side: ctx.model.side_slice(side) for side in (giver, receiver)}
-    paths = {giver: g_path[:, cols[giver]], receiver: r_path[:, cols[receiver]]}
-    limits = JointLimits.concat(ctx.arm_limits, ctx.arm_limits)
-    traj = rendezvous(paths["left"], paths["right"], limits, ctx.dt)
-    motion = ctx.motion_of(traj, "meet")
-    if ctx.checked(motion, clearance * 0.8, 0.0):
-        motion.info["rendezvous"] = True
-        return motion
+    paths = {giver: g_path[:, cols[giver]]}
+    try:
+        r_path = plan_path(ctx.model, start, r_goal, arms=(receiver,), env_clearance=0.0)
+    except PlanningError as err:  # its pregrasp collides with the giver where it is now
+        if err.reason != "goal_in_collision":
+            raise
+    else:
+        r_path = np.vstack([r_path, q_meet[None]])
+        paths[receiver] = r_path[:, cols[receiver]]
+        limits = JointLimits.concat(ctx.arm_limits, ctx.arm_limits)
+        traj = rendezvous(paths["left"], paths["right"], limits, ctx.dt)
+        motion = ctx.motion_of(traj, "meet")
+        if ctx.checked(motion, clearance * 0.8, 0.0):
+            motion.info["rendezvous"] = True
+            return motion
     # Fallback: the giver arrives first, then the receiver comes in.
     g_plan = ctx.arm_plan(giver, time_path(paths[giver], ctx.arm_limits, ctx.dt), "give")
     r_path = plan_path(
@@ -254,6 +268,47 @@ def meet_motion(
     r_path = np.vstack([r_path, q_meet[None]])[:, cols[receiver]]
     r_plan = ctx.arm_plan(receiver, time_path(r_path, ctx.arm_limits, ctx.dt), "receive")
     motion = ctx.sequence([{giver: g_plan}, {receiver: r_plan}], ctx.still(start))
+    if not ctx.checked(motion, clearance * 0.8, 0.0):
+        raise PlanningError("arm_conflict", f"{giver} and {receiver} collide on the way")
+    motion.info["rendezvous"] = False
+    return motion
+
+
+def _receiver_first(
+    ctx: SkillContext,
+    giver: str,
+    receiver: str,
+    q_meet: np.ndarray,
+    q_pre: np.ndarray,
+    clearance: float,
+) -> Motion:
+    """The receiver moves to its pregrasp `q_pre` first (out of the giver's way), then the
+    giver brings the object to the meeting, then the receiver closes in (wide hands whose
+    meeting pose collides with the receiver's present one)."""
+    cols = {side: ctx.model.side_slice(side) for side in (giver, receiver)}
+    start = ctx.q.copy()
+    r_goal = start.copy()
+    r_goal[cols[receiver]] = q_pre[cols[receiver]]
+    g_goal = r_goal.copy()
+    g_goal[cols[giver]] = q_meet[cols[giver]]
+    kwargs = {"clearance": clearance, "env_clearance": 0.0}
+    r_path = plan_path(ctx.model, start, r_goal, arms=(receiver,), **kwargs)
+    g_path = plan_path(ctx.model, r_goal, g_goal, arms=(giver,), **kwargs)
+    r_in = np.vstack([q_pre[cols[receiver]], q_meet[cols[receiver]]])
+    parts = [
+        {
+            receiver: ctx.arm_plan(
+                receiver, time_path(r_path[:, cols[receiver]], ctx.arm_limits, ctx.dt), "pregrasp"
+            )
+        },
+        {
+            giver: ctx.arm_plan(
+                giver, time_path(g_path[:, cols[giver]], ctx.arm_limits, ctx.dt), "give"
+            )
+        },
+        {receiver: ctx.arm_plan(receiver, time_path(r_in, ctx.arm_limits, ctx.dt), "receive")},
+    ]
+    motion = ctx.sequence(parts, ctx.still(start))
     if not ctx.checked(motion, clearance * 0.8, 0.0):
         raise PlanningError("arm_conflict", f"{giver} and {receiver} collide on the way")
     motion.info["rendezvous"] = False
