@@ -140,6 +140,12 @@ HOME = (0.0, -0.42, 0.0, -2.58, 0.0, 2.16, np.pi / 4)
 #: 4500, 3500, 3500, 2000, 2000, 2000 N m/rad with kd = kp / 10) and viscous joint damping
 #: (Menagerie's 1 N m s/rad).
 KP = (4500.0, 4500.0, 3500.0, 3500.0, 2000.0, 2000.0, 2000.0)
+#: Snapshot pose (``scripts/render.py --pose reach``): the TCPs where the ViperX's reach pose
+#: puts them, (-+0.12, -0.06, 0.865), pointing down (IK, rounded to 1 mrad).
+REACH = (
+    (-0.163, 0.287, -0.181, -2.321, 0.104, 2.591, 1.037),
+    (0.204, 0.283, 0.14, -2.325, -0.059, 2.6, 0.829),
+)
 KD = tuple(k / 10 for k in KP)
 JOINT_DAMPING = 1.0
 
@@ -365,6 +371,7 @@ def franka_pair() -> Embodiment:
         left_base=Pose(xyz=(-BASE_X, BASE_Y, BASE_Z), rpy=(0, 0, yaw)),
         right_base=Pose(xyz=(BASE_X, BASE_Y, BASE_Z), rpy=(0, 0, yaw)),
         home=tuple(float(q) for q in HOME),
+        reach_pose=REACH,
     )
 
 
