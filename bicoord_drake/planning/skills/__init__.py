@@ -48,7 +48,7 @@ Every planning failure raises :class:`~bicoord_drake.planning.errors.PlanningErr
 reason; the two-arm skills (handover, toss, the ``*_together`` skills) leave the context
 unchanged when they fail.
 
->>> ctx = SkillContext(PlanningModel(scene))                            # doctest: +SKIP
+>>> ctx = SkillContext(view.planning_model())                      # doctest: +SKIP
 >>> left = pick(ctx, "left", "cube_a")
 >>> right = pick(ctx, "right", "cube_b")
 >>> motion = merge(ctx, left, right)     # both arms pick at once
