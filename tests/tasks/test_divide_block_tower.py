@@ -10,6 +10,7 @@ from bicoord_drake.config import StationConfig
 from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from bicoord_drake.stages.predicates import reset_predicate
@@ -310,6 +311,9 @@ def test_the_lower_cube_is_entered_only_once_the_upper_cube_has_risen(task, monk
         return motion
 
     class View:
+        def planning_model(self):
+            return PlanningModel(scene)
+
         def object_transforms(self):
             return {}
 
