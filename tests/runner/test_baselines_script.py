@@ -1,22 +1,16 @@
 """benchmarks/baselines.py: its commands and its table (the run itself is smoke-tested by hand;
 the loop it automates is tests/policies/test_lerobot_loop.py)."""
 
-import importlib.util
 import sys
-from pathlib import Path
 
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "baselines.py"
+from tests.runner.benchmark_scripts import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def baselines():
-    spec = importlib.util.spec_from_file_location("baselines", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["baselines"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("baselines")
 
 
 def test_commands_are_state_based_and_carry_the_extra_arguments(baselines, tmp_path):

@@ -1,23 +1,14 @@
 """The closed-loop physics-lever benchmark: its table and its guard on variant names."""
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 
 from bicoord_drake.config import StationConfig
-
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_expert_physics.py"
+from tests.runner.benchmark_scripts import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bench_expert_physics", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["bench_expert_physics"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("bench_expert_physics")
 
 
 def test_every_variant_is_a_valid_station_config(bench):

@@ -1,21 +1,13 @@
 """The throughput benchmark's before/after table: ratios of the run rate and the physics phase."""
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[2] / "benchmarks" / "bench_throughput.py"
+from tests.runner.benchmark_scripts import load_benchmark
 
 
 @pytest.fixture(scope="module")
 def bench():
-    spec = importlib.util.spec_from_file_location("bench_throughput", SCRIPT)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["bench_throughput"] = module
-    spec.loader.exec_module(module)
-    return module
+    return load_benchmark("bench_throughput")
 
 
 def _row(commit, task, wall, physics, simulated=20.0):
