@@ -56,7 +56,8 @@ def track(
     q_other = ctx.arm_q(other)
     with ctx.model.ignoring(ignore):  # once: entering it costs a filter rebuild
         ctx.model.set_padding(ctx.clearance / 2, 0.0)
-        start_depth = -min((d for _, _, d in ctx.model.colliding_pairs(ctx.q)), default=0.0)
+        start = {(a, b): d for a, b, d in ctx.model.colliding_pairs(ctx.q)}
+        start_depth = -min(start.values(), default=0.0)
         if start_depth > START_CONTACT_DEPTH:
             raise PlanningError(
                 "start_in_collision",
@@ -65,19 +66,19 @@ def track(
         q_arm = _track_samples(ctx, side, pose_at, duration, q_other, ignore, label)
         ctx.model.set_padding(ctx.clearance / 2, 0.0)
         q = [ctx.with_arm(side, x) for x in q_arm]
-        if not _path_free(ctx, q):
+        if not _path_free(ctx, q, start):
             raise PlanningError("path_in_collision", f"{label}: the {side} path collides")
     ctx.q = q[-1].copy()
     return ArmPlan(side, q_arm, np.full(len(q_arm), ctx.opening[side]), label=label)
 
 
-def _path_free(ctx: SkillContext, q: Sequence[np.ndarray]) -> bool:
-    """Whether the sampled path `q` is collision-free (current padding), except for contacts
-    the measured start is already in: a pair touching at the start (at most
-    START_CONTACT_DEPTH deep) may stay in contact along the path, never deeper than it began."""
-    start = {(a, b): d for a, b, d in ctx.model.colliding_pairs(q[0])}
-    if any(d < -START_CONTACT_DEPTH for d in start.values()):
-        return False
+def _path_free(
+    ctx: SkillContext, q: Sequence[np.ndarray], start: dict[tuple[str, str], float]
+) -> bool:
+    """Whether the sampled path `q` is collision-free (current padding), except for the
+    contacts `start` ((body, other) -> distance at q[0], checked by the caller to be at most
+    START_CONTACT_DEPTH deep): such a pair may stay in contact along the path, never deeper
+    than it began."""
     for a, b in zip(q[:-1], q[1:], strict=True):
         if ctx.edge_free(a, b):
             continue
