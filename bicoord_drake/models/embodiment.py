@@ -320,10 +320,18 @@ def _make_arm_sdf(embodiment: Embodiment, model_name: str) -> str:
     )
 
 
+#: The arm links and finger plates are rigid-hydroelastic: against the compliant task objects
+#: and pads they make hydroelastic contact (a pressure field over the overlap), which stays
+#: quiet under the "lagged" approximation; with point contact only, an object resting on or
+#: struck by a link was thrown off within a control step. Link against table or rigid object
+#: is point contact (Drake's fallback for rigid-rigid pairs).
+LINK_CONTACT = ContactProps(friction=0.8, hydroelastic="rigid", resolution_hint=0.01)
+
+
 def _link_sdf(link: LinkSpec, mesh_prefix: str, pose: str) -> str:
     parts = [f'<link name="{link.name}">', pose, _link_inertial(link)]
     for i, prim in enumerate(link.collision):
-        parts.append(sdf_collision(f"{link.name}_collision_{i}", prim, ContactProps(friction=0.8)))
+        parts.append(sdf_collision(f"{link.name}_collision_{i}", prim, LINK_CONTACT))
     if link.visual:
         mesh = trimesh.util.concatenate([p.trimesh(smooth=0.008) for p in link.visual])
         parts.append(
@@ -360,6 +368,7 @@ def _finger_sdf(prefix: str, mount: str, g: GripperSpec, sign: int) -> str:
         size=(g.pad_length, g.pad_thickness, g.pad_height),
         pose=Pose(xyz=(length - g.pad_length / 2, s * g.pad_thickness / 2, 0.0)),
     )
+    plate_props = ContactProps(friction=g.pad_friction, hydroelastic="rigid", resolution_hint=0.005)
     pad_props = ContactProps(
         friction=g.pad_friction,
         hydroelastic="compliant",
@@ -379,7 +388,7 @@ def _finger_sdf(prefix: str, mount: str, g: GripperSpec, sign: int) -> str:
         f'<link name="{name}">'
         f'<pose relative_to="{mount}">{g.finger_origin_x} 0 0 0 0 0</pose>'
         f"{sdf_inertial(m, (length / 2, plate_y, 0.0), inertia)}"
-        f"{sdf_collision(f'{name}_plate', plate, ContactProps(friction=g.pad_friction))}"
+        f"{sdf_collision(f'{name}_plate', plate, plate_props)}"
         f"{sdf_collision(f'{name}_pad', pad, pad_props)}"
         f"{sdf_mesh_visual(f'{name}_plate_visual', plate_mesh, g.finger_color)}"
         f"{sdf_mesh_visual(f'{name}_pad_visual', pad_mesh, g.pad_color)}"

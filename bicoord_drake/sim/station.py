@@ -1,7 +1,7 @@
 """``build_station(scene, config)``: the one place a simulation diagram is built.
 
-The station is a discrete ``MultibodyPlant`` (SAP solver, hydroelastic contact with point-contact
-fallback) holding the table, two arms and the scene's objects, plus:
+The station is a discrete ``MultibodyPlant`` (the contact approximation and step of
+:class:`~bicoord_drake.config.StationConfig`, hydroelastic contact with point-contact fallback) holding the table, two arms and the scene's objects, plus:
 
 - joint PD control inside the plant (mutable actuator gains; SAP integrates it implicitly) with a
   gravity feed-forward computed on a robot-only control plant,
