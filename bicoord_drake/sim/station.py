@@ -1,10 +1,11 @@
 """``build_station(scene, config)``: the one place a simulation diagram is built.
 
 The station is a discrete ``MultibodyPlant`` (the contact approximation and step of
-:class:`~bicoord_drake.config.StationConfig`, hydroelastic contact with point-contact fallback) holding the table, two arms and the scene's objects, plus:
+:class:`~bicoord_drake.config.StationConfig`, hydroelastic contact with point-contact
+fallback) holding the table, two arms and the scene's objects, plus:
 
-- joint PD control inside the plant (mutable actuator gains; SAP integrates it implicitly) with a
-  gravity feed-forward computed on a robot-only control plant,
+- joint PD control inside the plant (mutable actuator gains, integrated implicitly by the
+  contact solver) with a gravity feed-forward computed on a robot-only control plant,
 - an :class:`~bicoord_drake.sim.control.ActionInterpolator` that turns the action into PD
   targets with a first-order hold over each control period,
 - a :class:`~bicoord_drake.sim.control.StationObserver` for joint state, TCP and object poses,
