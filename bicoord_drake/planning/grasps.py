@@ -27,11 +27,13 @@ shape's symmetric yaws and ranks the resulting TCP poses like grasps.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RotationMatrix
 
 from bicoord_drake.models.embodiment import Embodiment, GripperSpec, Side
@@ -135,6 +137,18 @@ def gripper_frame(approach: np.ndarray, finger_axis: np.ndarray, p: np.ndarray) 
     y = _unit(finger_axis - (finger_axis @ x) * x)
     R = np.column_stack([x, y, np.cross(x, y)])
     return RigidTransform(RotationMatrix(R), np.asarray(p, dtype=float))
+
+
+def turned_onto(R: RotationMatrix, u: np.ndarray, v: np.ndarray) -> RotationMatrix:
+    """`R` turned by the smallest rotation that takes unit vector `u` onto unit vector `v`
+    (`R` itself when they are parallel; antiparallel vectors have no unique smallest turn and
+    are left unturned too)."""
+    u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
+    axis = np.cross(u, v)
+    s = float(np.linalg.norm(axis))
+    if s < 1e-12:
+        return R
+    return RotationMatrix(AngleAxis(math.atan2(s, float(u @ v)), axis / s)) @ R
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -26,6 +26,7 @@ from bicoord_drake.planning.grasps import (
     arm_base,
     grasp_candidates,
     gripper_frame,
+    turned_onto,
 )
 from bicoord_drake.planning.skills import (
     ArmPlan,
@@ -327,7 +328,7 @@ class RollerTool:
         axis = X_WO.rotation().col(2)
         sign = -1.0 if axis[0] > 0 else 1.0  # the end that points toward -x
         p_OQ = np.array([0.0, 0.0, sign * shape.length / 2])
-        R_level = _turned(X_WO.rotation(), sign * axis, np.array([-1.0, 0.0, 0.0]))
+        R_level = turned_onto(X_WO.rotation(), sign * axis, np.array([-1.0, 0.0, 0.0]))
         return cls(R_level, p_OQ, X_WO.inverse() @ X_WT)
 
     def tcp_at(self, tip: np.ndarray) -> RigidTransform:
@@ -336,16 +337,6 @@ class RollerTool:
 
     def line(self, a: np.ndarray, b: np.ndarray) -> Callable[[float], RigidTransform]:
         return lambda s: self.tcp_at(a + s * (b - a))
-
-
-def _turned(R: RotationMatrix, u: np.ndarray, v: np.ndarray) -> RotationMatrix:
-    """`R` turned by the smallest rotation that takes unit vector `u` onto `v`."""
-    axis = np.cross(u, v)
-    s = float(np.linalg.norm(axis))
-    if s < 1e-12:
-        return R
-    angle = math.atan2(s, float(u @ v))
-    return RotationMatrix(AngleAxis(angle, axis / s)) @ R
 
 
 @contextmanager

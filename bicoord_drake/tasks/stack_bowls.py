@@ -7,14 +7,14 @@ from collections.abc import Iterator
 from functools import partial
 
 import numpy as np
-from pydrake.all import AngleAxis, RigidTransform, RotationMatrix
+from pydrake.all import RigidTransform, RotationMatrix
 
 from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
 from bicoord_drake.planning.errors import PlanningError
-from bicoord_drake.planning.grasps import GraspParams, arm_base, bowl_rim_grasps
+from bicoord_drake.planning.grasps import GraspParams, arm_base, bowl_rim_grasps, turned_onto
 from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
@@ -343,11 +343,7 @@ def _nest_goal(ctx: SkillContext, lower: str) -> RigidTransform:
     degrees off vertical takes the next one only along its own axis), no yaw."""
     X = ctx.model.object_pose(lower)
     axis = X.rotation().matrix()[:, 2]
-    tilt_axis = np.cross([0.0, 0.0, 1.0], axis)
-    sin, cos = np.linalg.norm(tilt_axis), axis[2]
-    R = RotationMatrix()
-    if sin > 1e-9:
-        R = RotationMatrix(AngleAxis(math.atan2(sin, cos), tilt_axis / sin))
+    R = turned_onto(RotationMatrix(), np.array([0.0, 0.0, 1.0]), axis)
     return RigidTransform(R, X.translation() + (NEST_RISE + NEST_DROP) * axis)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RollPitchYaw, RotationMatrix
 
 from bicoord_drake.models.geometry import Pose, Primitive
@@ -33,6 +34,7 @@ from bicoord_drake.planning.grasps import (
     sphere_grasps,
     stack_target,
     table_target,
+    turned_onto,
 )
 
 DOWN = np.array([0.0, 0.0, -1.0])
@@ -397,3 +399,23 @@ def test_pot_handles_are_grasped_from_outside_horizontally():
     assert {g.kind for g in grasp_candidates(obj, gripper)} == {"handle"}
     with pytest.raises(ValueError):
         pot_handle_grasps(X_WO, pot, gripper, handles=(0.0,))
+
+
+def test_turned_onto_takes_u_onto_v_by_the_smallest_turn():
+    R = RotationMatrix(RollPitchYaw(0.3, -0.2, 1.1))
+    u = np.array([0.0, 0.0, 1.0])
+    v = np.array([0.6, 0.0, 0.8])
+    turned = turned_onto(R, u, v)
+    turn = turned @ R.inverse()  # the rotation applied
+    np.testing.assert_allclose(turn.multiply(u), v, atol=1e-12)
+    # the smallest turn is about u x v, by the angle between them; it leaves u x v fixed
+    axis = np.cross(u, v) / np.linalg.norm(np.cross(u, v))
+    np.testing.assert_allclose(turn.multiply(axis), axis, atol=1e-12)
+    angle = AngleAxis(turn.ToQuaternion()).angle()
+    assert angle == pytest.approx(np.arccos(0.8), abs=1e-12)
+
+
+def test_turned_onto_leaves_parallel_vectors_unturned():
+    R = RotationMatrix(RollPitchYaw(0.1, 0.2, 0.3))
+    z = np.array([0.0, 0.0, 1.0])
+    assert np.array_equal(turned_onto(R, z, z).matrix(), R.matrix())

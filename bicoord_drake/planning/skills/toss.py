@@ -15,13 +15,13 @@ from dataclasses import replace
 from typing import Literal
 
 import numpy as np
-from pydrake.all import AngleAxis, JacobianWrtVariable, RigidTransform, RotationMatrix
+from pydrake.all import JacobianWrtVariable, RigidTransform, RotationMatrix
 
 from bicoord_drake.models.embodiment import SIDES
 from bicoord_drake.models.objects import BowlShape, BoxShape
 from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.planning.errors import PlanningError
-from bicoord_drake.planning.grasps import arm_base, naturalness
+from bicoord_drake.planning.grasps import arm_base, naturalness, turned_onto
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.motion import plan_path
 from bicoord_drake.planning.skills.arm import grip, move, solve_tcp
@@ -137,7 +137,8 @@ def _toss(
     R = ctx.model.held_pose(thrower, ctx.with_arm(thrower, throw.q_release)).rotation().matrix()
     cup = ctx.model.object(bowl.name).shape
     z_bowl = TABLE_TOP + catch_height
-    R_WB = _levelled(ctx.model.held_pose(catcher, ctx.q).rotation())
+    R_held = ctx.model.held_pose(catcher, ctx.q).rotation()
+    R_WB = turned_onto(R_held, R_held.col(2), np.array([0.0, 0.0, 1.0]))  # levelled, yaw kept
     h = max(half_extent(shape, R, [0, 0, 1.0]), 0.01)
     rim, t_rim = ballistic_landing(p_rel, v, z_bowl + cup.height + h)
     bottom, t_bottom = ballistic_landing(p_rel, v, z_bowl + cup.wall + h)
@@ -417,14 +418,3 @@ def least_spin_velocity(
     rate = float(spin @ n)
     t = -float(spin @ qd0) / rate if abs(rate) > 1e-9 and least_spin else 0.0
     return qd0 + float(np.clip(t, lo, hi)) * n
-
-
-def _levelled(R_WB: RotationMatrix) -> RotationMatrix:
-    """`R_WB` turned by the smallest rotation that makes its z axis vertical (its yaw kept)."""
-    z = R_WB.col(2)
-    axis = np.cross(z, [0.0, 0.0, 1.0])
-    s, c = float(np.linalg.norm(axis)), float(z[2])
-    if s < 1e-9:
-        return R_WB
-    tilt = RotationMatrix(AngleAxis(np.arctan2(s, c), axis / s))
-    return tilt @ R_WB
