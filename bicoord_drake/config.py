@@ -8,10 +8,18 @@ field (:func:`validation_message` says it in one line). :func:`parse_resolution`
 from __future__ import annotations
 
 import re
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+)
 
 CAMERA_NAMES = ("head_camera", "left_camera", "right_camera")
 CameraName = Literal["head_camera", "left_camera", "right_camera"]
@@ -64,6 +72,20 @@ def parse_resolution(text: str) -> tuple[int, int]:
     if not (16 <= w <= 4096 and 16 <= h <= 4096):
         raise ValueError(f"resolution {w}x{h} out of range: each side must be in [16, 4096]")
     return w, h
+
+
+def _resolution_text(text: str) -> str:
+    parse_resolution(text)
+    return text
+
+
+#: A settings field holding a scene seed (checked by :func:`check_seed`, before coercion: a
+#: bool or a float is refused, not turned into an int).
+Seed = Annotated[int, BeforeValidator(check_seed)]
+
+#: A settings field holding an image size as 'WIDTHxHEIGHT' (checked by
+#: :func:`parse_resolution`).
+Resolution = Annotated[str, AfterValidator(_resolution_text)]
 
 
 class CameraConfig(BaseModel):

@@ -28,13 +28,12 @@ from pydantic import (
     ConfigDict,
     Field,
     field_serializer,
-    field_validator,
     model_validator,
 )
 
-from bicoord_drake.config import StationConfig, check_seed
+from bicoord_drake.config import Seed, StationConfig
 from bicoord_drake.models.appearance import Split
-from bicoord_drake.models.layout import ActionLayout, check_embodiment, default_embodiment
+from bicoord_drake.models.layout import ActionLayout, EmbodimentName, default_embodiment
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import Station, build_station
@@ -55,12 +54,12 @@ class EpisodeSetup(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", arbitrary_types_allowed=True)
 
     task: str | Task = Field(description="a registered task's name, or a Task")
-    seed: int = Field(description="the scene's seed, in [0, 2**32)")
+    seed: Seed = Field(description="the scene's seed, in [0, 2**32)")
     randomize: bool = Field(
         False, description="the seed's randomized look, table height and clutter from split"
     )
     split: Split = Field("seen", description="textures (with randomize) and instructions")
-    embodiment: str = Field(default_factory=default_embodiment, description="the robot")
+    embodiment: EmbodimentName = Field(default_factory=default_embodiment, description="the robot")
     station: StationConfig = Field(default_factory=StationConfig)
     scene: Scene | None = Field(
         None, description="a recorded scene to use as is (a demonstration's); None: sample it"
@@ -91,16 +90,6 @@ class EpisodeSetup(BaseModel):
         if station.embodiment != name:
             station = station.model_copy(update={"embodiment": name})
         return {**data, "embodiment": name, "station": station}
-
-    @field_validator("seed", mode="before")
-    @classmethod
-    def _seed(cls, value: Any) -> int:
-        return check_seed(value)
-
-    @field_validator("embodiment")
-    @classmethod
-    def _embodiment(cls, value: str) -> str:
-        return check_embodiment(value)
 
     @field_serializer("task")
     def _task_name(self, task: str | Task) -> str:

@@ -16,8 +16,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Annotated
 
 import numpy as np
+from pydantic import AfterValidator
 
 from bicoord_drake.config import StationConfig
 from bicoord_drake.models.embodiment import SIDES, Embodiment, Side
@@ -156,3 +158,7 @@ def check_embodiment(name: str) -> str:
     if name not in EMBODIMENTS:
         get_embodiment(name)  # raises, naming the valid embodiments
     return name
+
+
+#: A settings field naming a registered embodiment (checked by :func:`check_embodiment`).
+EmbodimentName = Annotated[str, AfterValidator(check_embodiment)]

@@ -37,13 +37,14 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from bicoord_drake.config import (
     SEED_LIMIT,
     CameraConfig,
+    Resolution,
+    Seed,
     StationConfig,
-    check_seed,
     check_seed_range,
     parse_resolution,
 )
@@ -62,7 +63,7 @@ from bicoord_drake.data.episode import (
     write_manifest,
 )
 from bicoord_drake.episode_setup import EpisodeSetup, assemble
-from bicoord_drake.models.layout import check_embodiment, default_embodiment
+from bicoord_drake.models.layout import EmbodimentName, default_embodiment
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.runner.backends import WorkerLost, make_backend, quiet_worker
@@ -92,16 +93,16 @@ class GenerateConfig(BaseModel):
 
     task: str
     episodes: int = Field(10, ge=1, description="successful episodes to produce")
-    seed: int = Field(0, description="first seed to try, in [0, 2**32)")
+    seed: Seed = Field(0, description="first seed to try, in [0, 2**32)")
     out: str = "data"
-    resolution: str = "320x240"
+    resolution: Resolution = "320x240"
     fps: float = Field(15.0, gt=0, le=100, description="control and recording rate, Hz")
     depth: bool = False
     render: bool = True
     randomize: bool = Field(
         False, description="randomized textures, lights, table height, camera jitter, clutter"
     )
-    embodiment: str = Field(default_factory=default_embodiment, description="the robot")
+    embodiment: EmbodimentName = Field(default_factory=default_embodiment, description="the robot")
     config_name: str = Field(
         None,  # type: ignore[assignment]  # filled in by _default_config_name
         pattern=r"^[A-Za-z0-9_.-]+$",
@@ -129,22 +130,6 @@ class GenerateConfig(BaseModel):
             embodiment = data.get("embodiment")
             return {**data, "config_name": default_config_name(False, embodiment)}
         return data
-
-    @field_validator("resolution")
-    @classmethod
-    def _resolution(cls, value: str) -> str:
-        parse_resolution(value)
-        return value
-
-    @field_validator("seed")
-    @classmethod
-    def _seed(cls, value: int) -> int:
-        return check_seed(value)
-
-    @field_validator("embodiment")
-    @classmethod
-    def _embodiment(cls, value: str) -> str:
-        return check_embodiment(value)
 
     @model_validator(mode="after")
     def _seeds_in_range(self) -> GenerateConfig:

@@ -21,11 +21,12 @@ from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from bicoord_drake.config import (
     SEED_LIMIT,
     CameraConfig,
+    Resolution,
     StationConfig,
     check_seed_range,
     parse_resolution,
@@ -41,7 +42,7 @@ from bicoord_drake.data.episode import (
 from bicoord_drake.env import EVAL_SEED_START, Env, InvalidActionError
 from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.appearance import Split
-from bicoord_drake.models.layout import check_embodiment, default_embodiment
+from bicoord_drake.models.layout import EmbodimentName, default_embodiment
 from bicoord_drake.policies import bind_policy, reset_policy
 from bicoord_drake.runner import generate as generation
 from bicoord_drake.runner.backends import local_workers
@@ -68,7 +69,7 @@ class EvaluateConfig(BaseModel):
     stage: int | None = Field(None, ge=0, description="reset at the start of this stage")
     video: str | None = Field(None, description="directory for head-camera rollout videos")
     out: str = Field("eval", description="report directory root")
-    resolution: str = "320x240"
+    resolution: Resolution = "320x240"
     render: bool = True
     depth: bool = False
     randomize: bool = Field(
@@ -77,7 +78,7 @@ class EvaluateConfig(BaseModel):
     split: Literal["seen", "unseen"] = Field(
         "unseen", description="instructions and (with randomize) textures of this split"
     )
-    embodiment: str = Field(default_factory=default_embodiment, description="the robot")
+    embodiment: EmbodimentName = Field(default_factory=default_embodiment, description="the robot")
     action_mode: Literal["qpos", "endpose"] = "qpos"
     fps: float = Field(15.0, gt=0, le=100, description="control rate (data: from the files)")
     step_limit: int | None = Field(None, ge=1, description="override the task's step limit")
@@ -92,17 +93,6 @@ class EvaluateConfig(BaseModel):
     backend: Literal["local", "ray"] = "local"
     ray_address: str | None = Field(None, description="join this Ray cluster (auto, HOST:PORT)")
     verbose: bool = Field(False, description="workers' Drake and Ray logs on the terminal")
-
-    @field_validator("resolution")
-    @classmethod
-    def _resolution(cls, value: str) -> str:
-        parse_resolution(value)
-        return value
-
-    @field_validator("embodiment")
-    @classmethod
-    def _embodiment(cls, value: str) -> str:
-        return check_embodiment(value)
 
     @model_validator(mode="after")
     def _consistent(self) -> EvaluateConfig:
