@@ -111,7 +111,7 @@ def _bounding_radius(shape) -> float:
 
 
 @lru_cache(maxsize=4096)
-def _bisection_order(n: int) -> np.ndarray:
+def bisection_order(n: int) -> np.ndarray:
     """0..n ordered coarse to fine: both ends, the midpoint, the quarter points, ..."""
     seen = np.zeros(n + 1, bool)
     order = []
@@ -586,7 +586,7 @@ class PlanningModel:
         fine (bisection order), so a colliding segment is usually rejected after a few."""
         a, b = np.asarray(q_a, float), np.asarray(q_b, float)
         n = max(1, int(np.ceil(self.path_distance(a, b) / resolution)))
-        order = _bisection_order(n) if endpoints else _bisection_order(n)[2:]
+        order = bisection_order(n) if endpoints else bisection_order(n)[2:]
         start = 0
         size = 4
         while start < len(order):
