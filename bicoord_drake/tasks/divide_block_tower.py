@@ -341,8 +341,22 @@ class DivideBlockTower(Task):
             placed[side].append(name)
             k = nexts[side].get(name)
             if chained and k is not None:
+                q, opening = ctx.q.copy(), dict(ctx.opening)
                 after = _approach(ctx, side, CUBES[k], above=CUBES[k + 1], chosen=approached)
-                return plan.then(after)
+                # only where that is no longer than going home and coming back from there
+                direct = ctx.q.copy()
+                ctx.q, ctx.opening = q.copy(), dict(opening)
+                try:
+                    home = retreat(ctx, side)
+                    back = _approach(ctx, side, CUBES[k], above=CUBES[k + 1])
+                    via_home = home.num_steps + back.num_steps
+                except PlanningError:
+                    via_home = None
+                ctx.q = direct
+                if via_home is None or after.num_steps <= via_home:
+                    return plan.then(after)
+                ctx.q, ctx.opening = q, opening
+                approached.pop(CUBES[k])
             return plan.then(retreat(ctx, side))
 
         order = scene.draws["order"]
