@@ -71,7 +71,7 @@ WAIT_AT = (0.2, 0.06, 0.16)
 #: flicks a light cube sideways off its smaller support.
 RELEASE_STEPS = 12
 #: Radius (m, xy) of the zone around the tower spot one hand at a time works in.
-SPOT_ZONE = 0.08
+SPOT_ZONE = 0.05
 #: Control steps both arms hold still at the end: the tower must be seen at rest for 0.3 s.
 SETTLE_STEPS = 8
 

@@ -86,7 +86,7 @@ CLEAR_RADIUS = 0.12
 CLEAR_STEPS = 3
 #: Where the second arm waits with its object while the first drops: TCP WAIT_AT[0] beside
 #: the bin's centre in x on its own side, WAIT_AT[1] past it in y, WAIT_AT[2] above the table.
-WAIT_AT = (0.15, 0.05, 0.2)
+WAIT_AT = (0.2, 0.05, 0.2)
 #: Control steps both arms hold still at the end: the objects must be seen at rest for 0.3 s.
 SETTLE_STEPS = 10
 #: Fingertips stay this far above the table in a grasp (m; the planner keeps 5 mm).
