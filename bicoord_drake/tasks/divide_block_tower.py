@@ -127,6 +127,9 @@ SIDE_TCP = 0.029
 CLEAR_RISE = 0.025
 #: Most control steps the lower cube's arm is held back beyond that, to keep ARM_GAP.
 MAX_DELAY = 90
+#: How far short (m) of its pregrasp an arm that comes to the tower ahead of its turn stops;
+#: it covers the rest as the cube above its own rises, arriving just in time.
+STANDOFF = 0.06
 #: Control steps over which a gripper lets go of a cube set on another (a slow release does
 #: not flick it off its support).
 RELEASE_STEPS = 12
@@ -155,8 +158,9 @@ class DivideBlockTower(Task):
     take one at once, sort them onto the signs, then take and stack the last two the same
     way. When they share a colour, that colour's arm takes the top cube to its sign alone and
     comes straight back beside the second (the other arm comes to the tower meanwhile and
-    waits beside the cube it takes next), then it takes the second while the other arm takes
-    the third and comes straight back for the bottom cube, which it takes alone: turn-taking
+    stops 6 cm short of the cube it takes next, covering the rest as the cube above it rises),
+    then it takes the second while the other arm takes the third and comes straight back for
+    the bottom cube, which it takes alone: turn-taking
     forced by the tower and the colours - the bottom cube comes free only after the third,
     and only its colour's arm, whose cubes these both are, may take it; the other arm has no
     cube left and goes home. A cube is never handed over: the arm of its
@@ -384,7 +388,7 @@ class DivideBlockTower(Task):
                 if step.other == "prepare":  # come beside the cube it takes next
                     k = _next_lower(order, step.upper)
                     plans[arm_o] = _approach(
-                        ctx, arm_o, CUBES[k], above=CUBES[k + 1], chosen=approached
+                        ctx, arm_o, CUBES[k], CUBES[k + 1], approached, standoff=STANDOFF
                     )
                 with ctx.model.padded(ARM_GAP, 0.0):
                     return merge(ctx, plans.get("left"), plans.get("right"))
@@ -511,14 +515,24 @@ def _side_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
 
 
 def _approach(
-    ctx: SkillContext, side: str, name: str, above: str, chosen: dict[str, Grasp] | None = None
+    ctx: SkillContext,
+    side: str,
+    name: str,
+    above: str,
+    chosen: dict[str, Grasp] | None = None,
+    standoff: float = 0.0,
 ) -> ArmPlan:
     """`side` comes to the pregrasp of its first reachable side grasp of `name` and waits
     there, clear of the cube `above` it (a later :func:`pick` of `name` starts from it; its
     grasp is checked as if `above` were gone, as it will be). The grasp goes into `chosen`
-    under `name`."""
+    under `name` (one already there is tried first). With `standoff` (m) it stops that much
+    short of the pregrasp along the grasp's approach (where it can; else at the pregrasp): a
+    later call covers the rest, straight where it can."""
     reasons = []
-    for grasp in _side_grasps(ctx, side, name):
+    grasps = _side_grasps(ctx, side, name)
+    if chosen is not None and name in chosen:  # the grasp it came toward before, first
+        grasps = [chosen[name], *grasps]
+    for grasp in grasps:
         try:
             q_pre = solve_tcp(ctx, side, TcpTarget(grasp.X_WPre))
             q_grasp = solve_tcp(
@@ -528,13 +542,43 @@ def _approach(
             if tcp_deviation(ctx, side, q_pre, q_grasp) > MAX_LINE_DEVIATION:
                 reasons.append("not_straight")
                 continue
-            plan = move(ctx, side, q_pre, label=f"approach {name}")
+            q_goal = q_pre
+            if standoff > 0.0:
+                q_goal = _standoff(ctx, side, grasp, q_pre, standoff)
+            near = np.linalg.norm(
+                ctx.model.tcp_pose(ctx.q, side).translation() - grasp.X_WPre.translation()
+            )
+            plan = None
+            if near <= STANDOFF + 0.01:  # from its standoff: straight in
+                try:
+                    plan = move(ctx, side, q_goal, label=f"approach {name}", straight=True)
+                except PlanningError:
+                    plan = None
+            if plan is None:
+                plan = move(ctx, side, q_goal, label=f"approach {name}")
             if chosen is not None:
                 chosen[name] = grasp
             return plan
         except PlanningError as err:
             reasons.append(err.reason)
     raise PlanningError("approach_failed", f"{side} cannot come beside {name!r} ({reasons})")
+
+
+def _standoff(
+    ctx: SkillContext, side: str, grasp: Grasp, q_pre: np.ndarray, standoff: float
+) -> np.ndarray:
+    """`side`'s joints `standoff` (m) short of `grasp`'s pregrasp along its approach, if the
+    straight move from there to `q_pre` is free with the other arm where it is now; else
+    `q_pre`."""
+    X = grasp.X_WPre
+    p = X.translation() - standoff * np.asarray(grasp.approach, dtype=float)
+    try:
+        q = solve_tcp(ctx, side, TcpTarget(RigidTransform(X.rotation(), p)))
+    except PlanningError:
+        return q_pre
+    if ctx.edge_free(ctx.with_arm(side, q), ctx.with_arm(side, q_pre)):
+        return q
+    return q_pre
 
 
 def _take_below(
