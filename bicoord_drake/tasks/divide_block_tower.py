@@ -141,33 +141,33 @@ SETTLE_STEPS = 8
 class DivideBlockTower(Task):
     """Divide a four-cube tower of two colours into one two-cube tower per colour.
 
-    Description: a static black base (8x8x6 cm) stands at the back of the table with four
-    cubes (4-5 cm edges) stacked on it, two of colour A and two of colour B in a random order;
-    a 10 cm square sign outlined in colour A lies on the left and one outlined in colour B on
-    the right, both near the robot. The cubes are taken off the tower two at a time, top
-    first, and each is put on the sign of its colour, the second on the first, so that each
-    sign ends with a two-cube tower of its colour. The left arm handles colour A and the right
-    arm colour B, each side-grasping the tower's cubes from its own side (jaws horizontal).
-    Of the two cubes taken at once, the upper one's arm lifts it and pulls it out to its own
-    side; the other arm waits beside the cube below and slides its fingers in as soon as the
-    upper cube has risen 2.5 cm off it (no earlier, so it never lifts a cube with another on
-    it), then lifts it; each arm sets its cube on its sign and goes home. The lower cube's
-    arm arrives beside its cube just in time (its approach is slowed to end as the upper
-    cube comes free, instead of waiting at home), and the arm done first takes its way home
-    at a pace that ends with the other's. When the top two cubes differ in colour, both arms
-    take one at once, sort them onto the signs, then take and stack the last two the same
-    way. When they share a colour, that colour's arm takes the top cube to its sign alone and
-    comes straight back beside the second (the other arm comes to the tower meanwhile and
+    Description: a static black base (8x8x6 cm) stands at the back of the table with four cubes
+    (4-5 cm edges) stacked on it, two of colour A and two of colour B in a random order; a 10 cm
+    square sign outlined in colour A lies on the left and one outlined in colour B on the right,
+    both near the robot. The cubes are taken off the tower two at a time, top first, and each is
+    put on the sign of its colour, the second on the first, so that each sign ends with a
+    two-cube tower of its colour. The left arm handles colour A and the right arm colour B, each
+    side-grasping the tower's cubes from its own side (jaws horizontal). Of the two cubes taken
+    at once, the upper one's arm lifts it and pulls it out to its own side; the other arm waits
+    beside the cube below and slides its fingers in as soon as the upper cube has risen 2.5 cm
+    off it (no earlier, so it never lifts a cube with another on it), then lifts it; each arm
+    sets its cube on its sign and goes home. The lower cube's arm arrives beside its cube just
+    in time (its approach is slowed to end as the upper cube comes free, instead of waiting at
+    home), and the arm done first takes its way home at a pace that ends with the other's. When
+    the top two cubes differ in colour, both arms take one at once, sort them onto the signs,
+    then take and stack the last two the same way. When they share a colour, that colour's arm
+    takes the top cube to its sign alone and comes straight back beside the second (where that
+    way is no longer than going home and back; the other arm comes to the tower meanwhile and
     stops 6 cm short of the cube it takes next, covering the rest as the cube above it rises),
-    then it takes the second while the other arm takes the third and comes straight back for
-    the bottom cube, which it takes alone: turn-taking
-    forced by the tower and the colours - the bottom cube comes free only after the third,
-    and only its colour's arm, whose cubes these both are, may take it; the other arm has no
-    cube left and goes home. A cube is never handed over: the arm of its
-    colour reaches every level of the tower from its own side (measured for the whole base
-    range and both cube sizes), so the spec's handover (when R picks an A cube) never arises.
-    After every take the expert checks that the cubes left on the tower moved less than 1 cm
-    (else the episode is dropped: ``tower_disturbed``).
+    then it takes the second while the other arm takes the third and comes back for the bottom
+    cube (straight, on the same condition), which it takes alone: turn-taking forced by the
+    tower and the colours - the bottom cube comes free only after the third, and only its
+    colour's arm, whose cubes these both are, may take it; the other arm has no cube left and
+    goes home. A cube is never handed over: the arm of its colour reaches every level of the
+    tower from its own side (measured for the whole base range and both cube sizes), so the
+    spec's handover (when R picks an A cube) never arises. After every take the expert checks
+    that the cubes left on the tower moved less than 1 cm (else the episode is dropped:
+    ``tower_disturbed``).
 
     Randomization: the two colours (from six); which two of the four levels hold colour A
     (six towers); each cube's edge in [4, 5] cm, its centre within 3 mm of the base's axis and
