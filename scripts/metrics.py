@@ -1,6 +1,8 @@
 """Coordination and long-horizon metrics (BiCoord Table 1) of episode datasets.
 
-Prints SMT, SMP %, MRD %, ARD %, STI %, TL, SN, ON per task and overall. PATHs are episode files
+Prints SMT, SMP %, MRD %, ARD %, STI %, TL, SN, ON and PL (mean joint-space path length of both
+arms' arm joints in rad, from the measured ``joint_state/vector``; "-" / null where a file has no
+joint positions, e.g. BiCoord's release) per task and overall. PATHs are episode files
 or directories (searched recursively for *.hdf5); episodes are grouped per task.
 
 Examples:

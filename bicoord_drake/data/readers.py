@@ -5,16 +5,19 @@ Layouts (``format``):
 ``bicoord_drake``
     Our episode files (PRODUCT.md, Data): ``endpose/{left,right}_endpose`` (T, 7) xyz + quaternion
     wxyz, ``joint_action/{left,right}_gripper`` (T,), ``stages/start`` (S,), root attributes
-    ``task``, ``schema_version``, ``object_count`` (ON), ``success``. Detected by a root attribute
+    ``task``, ``schema_version``, ``object_count`` (ON), ``success``; arm joint positions (path
+    length) from the measured ``joint_state/vector`` when present. Detected by a root attribute
     ``schema_version`` or ``task`` next to ``endpose/left_endpose``.
 ``robotwin``
     RoboTwin 2.0: ``endpose/{left,right}_endpose`` (T, 7) and ``joint_action/{left,right}_gripper``
-    (T,), no stages (SN is None), no object count (ON is None). Detected by those keys without our
-    root attributes.
+    (T,), no stages (SN is None), no object count (ON is None); arm joint positions from
+    ``joint_action/{left,right}_arm`` (T, n) when present. Detected by those keys without our root
+    attributes.
 ``bicoord``
     BiCoord's release: ``endpose`` (T, 14) = per arm [x, y, z, roll, pitch, yaw, gripper], left
     then right. Stage count from the sidecar ``stages/episodeN.json`` when present (rows
-    ``[start, end, subgoal, left, right, score]``), ON is None. Detected by a 2-D ``endpose``
+    ``[start, end, subgoal, left, right, score]``), ON is None, no joint positions (path length
+    unknown). Detected by a 2-D ``endpose``
     dataset of width 14.
 
 Task names: our files carry the ``task`` root attribute. Otherwise (and as a fallback) the name
@@ -48,6 +51,8 @@ SCHEMA_MAJOR = 1
 _BICOORD_ENDPOSE_WIDTH = 14
 _LEFT_POSE, _RIGHT_POSE = "endpose/left_endpose", "endpose/right_endpose"
 _LEFT_GRIP, _RIGHT_GRIP = "joint_action/left_gripper", "joint_action/right_gripper"
+_JOINT_STATE = "joint_state/vector"
+_LEFT_ARM, _RIGHT_ARM = "joint_action/left_arm", "joint_action/right_arm"
 
 
 def task_from_path(path: str | Path) -> str:
@@ -185,9 +190,34 @@ def _read_endpose_gripper(f: h5py.File, path: Path) -> dict:
     }
 
 
+def _joints_of_state(f: h5py.File, path: Path) -> dict:
+    """Arm joint positions from the measured ``joint_state/vector``, if the file has one."""
+    if _JOINT_STATE not in f:
+        return {}
+    arr = _array(f, _JOINT_STATE, path)
+    if arr.ndim != 2 or arr.shape[1] < 4 or arr.shape[1] % 2:
+        raise ValueError(
+            f"{path}: key '{_JOINT_STATE}' has shape {arr.shape}, expected (T, 2 (n + 1))"
+        )
+    n = arr.shape[1] // 2 - 1  # [left q (n), left opening, right q (n), right opening]
+    left_q, right_q = arr[:, :n], arr[:, n + 1 : 2 * n + 1]
+    return {"left_q": left_q, "right_q": right_q, "q_keys": (_JOINT_STATE, _JOINT_STATE)}
+
+
+def _joints_of_arms(f: h5py.File, path: Path) -> dict:
+    """Arm joint positions from ``joint_action/{left,right}_arm`` if the file has both."""
+    if _LEFT_ARM not in f or _RIGHT_ARM not in f:
+        return {}
+    left_q, right_q = _array(f, _LEFT_ARM, path), _array(f, _RIGHT_ARM, path)
+    for key, arr in ((_LEFT_ARM, left_q), (_RIGHT_ARM, right_q)):
+        if arr.ndim != 2 or arr.shape[1] < 1:
+            raise ValueError(f"{path}: key '{key}' has shape {arr.shape}, expected (T, n)")
+    return {"left_q": left_q, "right_q": right_q, "q_keys": (_LEFT_ARM, _RIGHT_ARM)}
+
+
 def _read_ours(f: h5py.File, path: Path) -> dict:
     _check_schema(f, path)
-    signals = _read_endpose_gripper(f, path)
+    signals = dict(_read_endpose_gripper(f, path), **_joints_of_state(f, path))
     if "stages" in f:
         n_stages = len(_vector(f, "stages/start", path))
     else:
@@ -215,7 +245,9 @@ def _read_ours(f: h5py.File, path: Path) -> dict:
 
 
 def _read_robotwin(f: h5py.File, path: Path) -> dict:
-    return dict(_read_endpose_gripper(f, path), task=task_from_path(path))
+    return dict(
+        _read_endpose_gripper(f, path), **_joints_of_arms(f, path), task=task_from_path(path)
+    )
 
 
 def _read_bicoord(f: h5py.File, path: Path) -> dict:
@@ -235,8 +267,12 @@ _READERS = {"bicoord_drake": _read_ours, "robotwin": _read_robotwin, "bicoord": 
 
 
 def _check_signals(path: Path, fields: dict) -> None:
-    keys = fields.pop("keys")
-    arrays = [fields[n] for n in ("left_xyz", "right_xyz", "left_gripper", "right_gripper")]
+    keys = list(fields.pop("keys"))
+    names = ["left_xyz", "right_xyz", "left_gripper", "right_gripper"]
+    if "q_keys" in fields:
+        keys += fields.pop("q_keys")
+        names += ["left_q", "right_q"]
+    arrays = [fields[n] for n in names]
     lengths = [len(a) for a in arrays]
     if len(set(lengths)) != 1:
         shown = ", ".join(f"'{k}' has {n}" for k, n in zip(keys, lengths, strict=True))

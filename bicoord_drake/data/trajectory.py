@@ -29,6 +29,9 @@ class Trajectory:
     n_stages: int | None = None
     n_objects: int | None = None
     success: bool | None = None
+    left_q: np.ndarray | None = None
+    """(L, n) arm joint positions per frame (no gripper), ``None`` when the file has none."""
+    right_q: np.ndarray | None = None
 
     @property
     def length(self) -> int:

@@ -1,5 +1,6 @@
-"""BiCoord metrics: coordination (SMT, SMP, MRD, ARD, STI), long-horizon (TL, SN, ON) and
-evaluation (SR, SSR, TL). Numpy, plus h5py to read episode files; no Drake.
+"""BiCoord metrics: coordination (SMT, SMP, MRD, ARD, STI), long-horizon (TL, SN, ON), the
+joint-space path length (PL) and evaluation (SR, SSR, TL). Numpy, plus h5py to read episode
+files; no Drake.
 
 Example::
 
@@ -21,6 +22,7 @@ from bicoord_drake.metrics.evaluation import (
     success_rate,
     trajectory_length,
 )
+from bicoord_drake.metrics.path_length import joint_path_length
 from bicoord_drake.metrics.report import (
     DatasetMetrics,
     EpisodeMetrics,
@@ -47,6 +49,7 @@ __all__ = [
     "episode_metrics",
     "format_csv",
     "format_table",
+    "joint_path_length",
     "measure_paths",
     "plot_sti_curves",
     "smp_curve",

@@ -2,8 +2,10 @@
 
 Dataset level (PRODUCT.md): every metric is the mean of the per-trajectory values (SMP is the mean
 of per-trajectory SMPs, not SMT / TL); TL = mean length, SN = mean stage count, ON = mean object
-count. "overall" pools every trajectory, so tasks weigh by their number of episodes. SN (ON) of a
-group is ``None`` unless every trajectory in it knows its stages (objects).
+count; PL = mean joint-space path length in radians (:mod:`bicoord_drake.metrics.path_length`;
+not in the paper's table). "overall" pools every trajectory, so tasks weigh by their number of
+episodes. SN (ON, PL) of a group is ``None`` unless every trajectory in it knows its stages
+(objects, joint positions).
 """
 
 from __future__ import annotations
@@ -25,8 +27,12 @@ from bicoord_drake.metrics.coordination import (
     coordination_metrics,
     smp_curve,
 )
+from bicoord_drake.metrics.path_length import joint_path_length
 
 COLUMNS = ("SMT", "SMP", "MRD", "ARD", "STI", "TL", "SN", "ON")
+"""The paper's Table 1 columns."""
+TABLE_COLUMNS = (*COLUMNS, "PL")
+"""The printed columns: Table 1's and the joint-space path length PL (rad)."""
 PERCENT_COLUMNS = ("SMP", "MRD", "ARD", "STI")
 _PAPER = {
     "RLBench2": (179, 97.10, 54.57, 114.93, 11.20, 186, 1.61, 2.23),
@@ -59,6 +65,8 @@ class EpisodeMetrics:
     coordination: CoordinationMetrics
     n_stages: int | None
     n_objects: int | None
+    path_length: float | None = None
+    """Joint-space path length (rad), ``None`` when the trajectory has no joint positions."""
 
 
 @dataclass(frozen=True)
@@ -74,11 +82,16 @@ class SummaryRow:
     tl: float
     sn: float | None
     on: float | None
+    pl: float | None = None
 
     def as_dict(self, percent: bool = True) -> dict[str, float | None]:
-        """``{"SMT", "SMP", "MRD", "ARD", "STI", "TL", "SN", "ON"}``; percent for SMP..STI."""
-        values = (self.smt, self.smp, self.mrd, self.ard, self.sti, self.tl, self.sn, self.on)
-        out = dict(zip(COLUMNS, values, strict=True))
+        """``{"SMT", "SMP", "MRD", "ARD", "STI", "TL", "SN", "ON", "PL"}``; percent for
+        SMP..STI."""
+        values = (
+            *(self.smt, self.smp, self.mrd, self.ard, self.sti),
+            *(self.tl, self.sn, self.on, self.pl),
+        )
+        out = dict(zip(TABLE_COLUMNS, values, strict=True))
         if percent:
             for key in PERCENT_COLUMNS:
                 out[key] = 100.0 * out[key]
@@ -117,6 +130,11 @@ def episode_metrics(
             move_tol=move_tol,
             closed_below=closed_below,
         )
+        left_q = getattr(trajectory, "left_q", None)
+        right_q = getattr(trajectory, "right_q", None)
+        path_length = (
+            None if left_q is None or right_q is None else joint_path_length(left_q, right_q)
+        )
     except ValueError as exc:
         raise ValueError(f"{trajectory.source}: {exc}") from None
     return EpisodeMetrics(
@@ -125,10 +143,11 @@ def episode_metrics(
         coordination=coordination,
         n_stages=trajectory.n_stages,
         n_objects=trajectory.n_objects,
+        path_length=path_length,
     )
 
 
-def _mean_or_none(values: list[int | None]) -> float | None:
+def _mean_or_none(values: list[float | None]) -> float | None:
     if any(v is None for v in values):
         return None
     return float(np.mean(values))
@@ -150,6 +169,7 @@ def _summary(episodes: Sequence[EpisodeMetrics]) -> SummaryRow:
         tl=float(tl),
         sn=_mean_or_none([e.n_stages for e in episodes]),
         on=_mean_or_none([e.n_objects for e in episodes]),
+        pl=_mean_or_none([e.path_length for e in episodes]),
     )
 
 
@@ -220,8 +240,8 @@ def _rows(metrics: DatasetMetrics) -> list[tuple[str, SummaryRow]]:
 
 
 def format_table(metrics: DatasetMetrics) -> str:
-    """A Markdown table like the paper's Table 1 (percent for SMP, MRD, ARD, STI)."""
-    header = ["Task", "N", *(f"{c} %" if c in PERCENT_COLUMNS else c for c in COLUMNS)]
+    """A Markdown table like the paper's Table 1 (percent for SMP, MRD, ARD, STI), plus PL (rad)."""
+    header = ["Task", "N", *(f"{c} %" if c in PERCENT_COLUMNS else c for c in TABLE_COLUMNS)]
     lines = [
         "| " + " | ".join(header) + " |",
         "|" + "---|" + "---:|" * (len(header) - 1),
@@ -235,7 +255,7 @@ def format_table(metrics: DatasetMetrics) -> str:
 def format_csv(metrics: DatasetMetrics) -> str:
     """The same table as CSV (percent for SMP, MRD, ARD, STI; empty where unknown)."""
     out = io.StringIO()
-    out.write(",".join(["task", "n", *COLUMNS]) + "\n")
+    out.write(",".join(["task", "n", *TABLE_COLUMNS]) + "\n")
     for name, row in _rows(metrics):
         cells = ["" if v is None else repr(float(v)) for v in row.as_dict().values()]
         out.write(",".join([name, str(row.n), *cells]) + "\n")

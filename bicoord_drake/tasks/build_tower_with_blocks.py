@@ -18,7 +18,9 @@ from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
     SkillContext,
+    carry_above,
     hold,
+    leave_as_arrives,
     merge,
     move_tcp,
     pick,
@@ -68,6 +70,8 @@ WAIT_AT = (0.2, 0.06, 0.16)
 #: Control steps over which a gripper lets go of a cube on the tower: a fast opening
 #: flicks a light cube sideways off its smaller support.
 RELEASE_STEPS = 12
+#: Radius (m, xy) of the zone around the tower spot one hand at a time works in.
+SPOT_ZONE = 0.05
 #: Control steps both arms hold still at the end: the tower must be seen at rest for 0.3 s.
 SETTLE_STEPS = 8
 
@@ -78,11 +82,15 @@ class BuildTowerWithBlocks(Task):
 
     Description: three cubes of three sizes (5.2-6, 4-4.8 and 3-3.8 cm edges) lie on the
     table; a grey square marks the tower spot near the robot. The arm on the large cube's side
-    picks it and places it on the spot while the other arm stays clear; then both arms pick
-    the other two cubes at once, each the one on its own side; the arm with the middle cube
-    stacks it on the large cube while the other holds the small cube and waits; then the
-    middle cube's arm retreats while the other stacks the small cube on top. Which arm does
-    what follows from where the cubes lie.
+    picks it and places it on the spot while the other arm, clear of the spot, picks the cube
+    on its own side and carries it to a waiting point beside the spot. If that is the middle
+    cube, it is carried above the large cube while the first arm picks the small one, set on
+    the large cube while the small one is carried beside the spot, and its arm leaves as the
+    small one arrives on top. If it is the small cube, its arm holds it beside the spot while
+    the first arm picks the middle cube and stacks it (turn-taking forced by the tower: the
+    small cube can only go on the middle one, and the spot takes one hand at a time), then
+    stacks it as the first arm leaves. A leaving arm's way home is timed to end with the other
+    arm's stacking. Which arm does what follows from where the cubes lie.
 
     Randomization: the three edges; which side (sign of x) the large cube lies on, and which
     side the middle cube lies on - the small cube always lies on the other side from the
@@ -230,7 +238,10 @@ class BuildTowerWithBlocks(Task):
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         large, middle, small = BLOCKS
         sides = _sides(scene)
-        first, mid_arm, small_arm = sides["large"], sides["middle"], sides["small"]
+        first = sides["large"]
+        other = other_side(first)
+        own = middle if sides["middle"] == other else small  # the other arm's one cube
+        spot = scene.draws["spot_xy"]
         ctx = SkillContext(view.planning_model())
 
         run = partial(follow, ctx, view)
@@ -239,24 +250,46 @@ class BuildTowerWithBlocks(Task):
             X_WS = ctx.model.object_pose(support)  # measured at the last sync
             return stack_target(X_WS, _shape(scene, support), _shape(scene, name))
 
-        # ---- stages 1-2: the arm on the large cube's side sets it on the spot
-        spot_goal = table_target(scene.draws["spot_xy"], _shape(scene, large))
-        yield from run(_one_arm(ctx, first, pick(ctx, first, large)))
-        yield from run(_one_arm(ctx, first, place(ctx, first, spot_goal)))
-        # ---- stage 3: both pick the cube on their side at once
-        plans = {mid_arm: pick(ctx, mid_arm, middle), small_arm: pick(ctx, small_arm, small)}
-        yield from run(merge(ctx, plans["left"], plans["right"]))
-        # ---- stage 4: the middle cube's arm stacks it; the other carries the small cube to a
-        # waiting point on its side, clear of the tower (planned first: it leaves)
-        plans = {small_arm: _wait(ctx, small_arm, scene.draws["spot_xy"])}
-        plans[mid_arm] = place(ctx, mid_arm, on(middle, large), release_steps=RELEASE_STEPS)
-        yield from run(merge(ctx, plans["left"], plans["right"]))
-        # ---- stage 5: the middle cube's arm retreats while the other stacks the small cube
-        plans = {
-            mid_arm: retreat(ctx, mid_arm),
-            small_arm: place(ctx, small_arm, on(small, middle), release_steps=RELEASE_STEPS),
-        }
-        yield from run(merge(ctx, plans["left"], plans["right"]))
+        def both(plans: dict[str, ArmPlan]) -> Motion:
+            return merge(ctx, plans.get("left"), plans.get("right"))
+
+        # ---- stage 1: the arm on the large cube's side picks it while the other arm picks the
+        # cube on its own side (it is needed in stage 3 and lies away from the large one)
+        plans = {first: pick(ctx, first, large)}
+        plans[other] = pick(ctx, other, own)
+        yield from run(both(plans))
+        # ---- stage 2: the large cube goes on the spot while the other arm carries its cube
+        # to its waiting point beside the spot (planned first: it stays clear of the spot)
+        plans = {other: _wait(ctx, other, spot)}
+        plans[first] = place(ctx, first, table_target(spot, _shape(scene, large)))
+        yield from run(both(plans))
+        if own == middle:
+            # ---- stage 3: the first arm picks the small cube while the other carries the
+            # middle cube above the large one (it still holds it, so both count as lifted;
+            # the pick is planned first: it leaves the spot)
+            plans = {first: pick(ctx, first, small)}
+            plans[other] = carry_above(ctx, other, on(middle, large))
+            yield from run(both(plans))
+            # ---- stage 4: the middle cube goes on the large one while the small cube is
+            # carried to its waiting point on the first arm's side
+            plans = {first: _wait(ctx, first, spot)}
+            plans[other] = place(ctx, other, on(middle, large), release_steps=RELEASE_STEPS)
+            yield from run(both(plans))
+            stacker, leaver = first, other
+        else:
+            # ---- stages 3-4: the first arm picks the middle cube and stacks it while the
+            # other holds the small cube at its waiting point: the spot takes one hand at a
+            # time (turn-taking forced by the tower: the small cube goes on the middle one)
+            yield from run(both({first: pick(ctx, first, middle)}))
+            plans = {first: place(ctx, first, on(middle, large), release_steps=RELEASE_STEPS)}
+            yield from run(both(plans))
+            stacker, leaver = other, first
+        # ---- stage 5: the arm that stacked the middle cube leaves as the small cube arrives
+        # (the leaver's way home is timed to end with the stacking: it is out of the spot's
+        # zone at its own pace, then slows down)
+        leaving = retreat(ctx, leaver)
+        stacking = place(ctx, stacker, on(small, middle), release_steps=RELEASE_STEPS)
+        yield from run(leave_as_arrives(ctx, leaving, stacking, spot, SPOT_ZONE))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
@@ -271,11 +304,6 @@ def _wait(ctx: SkillContext, side: str, spot: list[float]) -> ArmPlan:
         return move_tcp(ctx, side, RigidTransform(X.rotation(), p), label="wait")
     except PlanningError:
         return hold(ctx, side, 0, label="wait")
-
-
-def _one_arm(ctx: SkillContext, side: str, plan) -> Motion:
-    """`plan` for `side` while the other arm keeps still."""
-    return merge(ctx, plan, None) if side == "left" else merge(ctx, None, plan)
 
 
 def _sides(scene: Scene) -> dict[str, str]:

@@ -25,12 +25,16 @@ from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import GraspParams, arm_base, bounding_box_grasps, box_grasps
 from bicoord_drake.planning.skills import (
     ArmPlan,
+    Motion,
     SkillContext,
     drop_into,
     hold,
+    leave_as_arrives,
     merge,
     move_tcp,
     pick,
+    retreat,
+    take_turn,
 )
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
@@ -45,7 +49,7 @@ from bicoord_drake.stages.predicates import (
 )
 from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
-from bicoord_drake.tasks.turn_taking import alternating_expert, alternating_stages
+from bicoord_drake.tasks.turn_taking import alternating_stages
 
 #: The static bin: 19 x 17 cm outside, 8 cm tall, 6 mm walls, at the spec's spot.
 BIN = BinShape(size=(0.19, 0.17, 0.08), wall=0.006)
@@ -100,10 +104,13 @@ class CleanTable(Task):
     each side. Both arms pick the object nearer the bin on their side at once; the first arm
     drops its object into the bin while the other waits beside it with its own; then the
     second arm drops while the first picks its other object, the first drops while the second
-    picks its last, and the second drops the last while the first retreats. Each arm arrives
-    over the bin as the other leaves it (the arrival is timed against the other arm's
-    departure, not after it). Which arm drops first is drawn per seed. Objects are let go
-    2.5 cm above the rim and fall in.
+    picks its last, and the second drops the last while the first retreats (its way home timed
+    to end with that drop). Each arm arrives over the bin as the other leaves it (the arrival
+    is timed against the other arm's departure, not after it). Turn-taking at the bin is
+    forced by the task: the bin takes one hand at a time, so the arms alternate there, and
+    while one drops the other is picking its next object or holding it at its waiting point
+    beside the bin. Which arm drops first is drawn per seed. Objects are let go 2.5 cm above
+    the rim and fall in.
 
     Randomization: which arm drops first; which four of the six kinds of object (without
     repeats) and which side each is on; positions x in [-0.3, -0.21] (left) or [0.15, 0.25]
@@ -213,17 +220,31 @@ class CleanTable(Task):
 
         run = partial(follow, ctx, view)
 
-        yield from alternating_expert(
-            ctx,
-            run,
-            scene.draws["first_side"],
-            OBJECTS,
-            pick=lambda side, name: _pick(ctx, side, name),
-            put=lambda side, k: _drop(ctx, side, k),
-            wait=lambda side: _wait(ctx, side),
-            spot_xy=BIN_XY,
-            clear_radius=CLEAR_RADIUS,
-            lag_steps=CLEAR_STEPS,
+        first = scene.draws["first_side"]
+        second = other_side(first)
+        o1, o2, o3, o4 = OBJECTS
+
+        def turn(leaver: ArmPlan, arriver: ArmPlan) -> Motion:
+            return take_turn(ctx, leaver, arriver, BIN_XY, CLEAR_RADIUS, lag_steps=CLEAR_STEPS)
+
+        # ---- stage 1: both arms pick the object nearer the bin on their side
+        plans = {first: _pick(ctx, first, o1)}
+        plans[second] = _pick(ctx, second, o2)
+        yield from run(merge(ctx, plans["left"], plans["right"]))
+        # ---- stage 2: the first arm drops its object in; the other carries its object to its
+        # waiting point (planned first: the first arm plans around it)
+        plans = {second: _wait(ctx, second)}
+        plans[first] = _drop(ctx, first, 0)
+        yield from run(merge(ctx, plans["left"], plans["right"]))
+        # ---- stages 3-4: each arm leaves to pick its next object as the other arrives
+        yield from run(turn(_pick(ctx, first, o3), _drop(ctx, second, 1)))
+        yield from run(turn(_pick(ctx, second, o4), _drop(ctx, first, 2)))
+        # ---- stage 5: the first arm leaves for home as the second drops the last object in,
+        # its way home timed to end with the drop
+        leaving = retreat(ctx, first)
+        dropping = _drop(ctx, second, 3)
+        yield from run(
+            leave_as_arrives(ctx, leaving, dropping, BIN_XY, CLEAR_RADIUS, lag_steps=CLEAR_STEPS)
         )
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()

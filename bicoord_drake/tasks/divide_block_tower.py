@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform
@@ -34,9 +35,12 @@ from bicoord_drake.planning.skills import (
     pick,
     place,
     retreat,
+    slowed_after,
     solve_tcp,
+    tcp_deviation,
 )
 from bicoord_drake.planning.skills.core import combine
+from bicoord_drake.planning.skills.pick_place import MAX_LINE_DEVIATION
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     Predicate,
@@ -123,6 +127,9 @@ SIDE_TCP = 0.029
 CLEAR_RISE = 0.025
 #: Most control steps the lower cube's arm is held back beyond that, to keep ARM_GAP.
 MAX_DELAY = 90
+#: How far short (m) of its pregrasp an arm that comes to the tower ahead of its turn stops;
+#: it covers the rest as the cube above its own rises, arriving just in time.
+STANDOFF = 0.06
 #: Control steps over which a gripper lets go of a cube set on another (a slow release does
 #: not flick it off its support).
 RELEASE_STEPS = 12
@@ -134,26 +141,33 @@ SETTLE_STEPS = 8
 class DivideBlockTower(Task):
     """Divide a four-cube tower of two colours into one two-cube tower per colour.
 
-    Description: a static black base (8x8x6 cm) stands at the back of the table with four
-    cubes (4-5 cm edges) stacked on it, two of colour A and two of colour B in a random order;
-    a 10 cm square sign outlined in colour A lies on the left and one outlined in colour B on
-    the right, both near the robot. The cubes are taken off the tower two at a time, top
-    first, and each is put on the sign of its colour, the second on the first, so that each
-    sign ends with a two-cube tower of its colour. The left arm handles colour A and the right
-    arm colour B, each side-grasping the tower's cubes from its own side (jaws horizontal).
-    Of the two cubes taken at once, the upper one's arm lifts it and pulls it out to its own
-    side; the other arm waits beside the cube below and slides its fingers in as soon as the
-    upper cube has risen 2.5 cm off it (no earlier, so it never lifts a cube with another on
-    it), then lifts it; each arm sets its cube on its sign and goes home. When the top two
-    cubes differ in colour, both arms take one at once, sort them onto the signs, then take
-    and stack the last two the same way. When they share a colour, that colour's arm takes
-    the top cube to its sign alone (the other arm comes to the tower and waits beside the
-    cube it takes next), then it takes the second while the other arm takes the third, and
-    the other arm finally takes the bottom cube. A cube is never handed over: the arm of its
-    colour reaches every level of the tower from its own side (measured for the whole base
-    range and both cube sizes), so the spec's handover (when R picks an A cube) never arises.
-    After every take the expert checks that the cubes left on the tower moved less than 1 cm
-    (else the episode is dropped: ``tower_disturbed``).
+    Description: a static black base (8x8x6 cm) stands at the back of the table with four cubes
+    (4-5 cm edges) stacked on it, two of colour A and two of colour B in a random order; a 10 cm
+    square sign outlined in colour A lies on the left and one outlined in colour B on the right,
+    both near the robot. The cubes are taken off the tower two at a time, top first, and each is
+    put on the sign of its colour, the second on the first, so that each sign ends with a
+    two-cube tower of its colour. The left arm handles colour A and the right arm colour B, each
+    side-grasping the tower's cubes from its own side (jaws horizontal). Of the two cubes taken
+    at once, the upper one's arm lifts it and pulls it out to its own side; the other arm waits
+    beside the cube below and slides its fingers in as soon as the upper cube has risen 2.5 cm
+    off it (no earlier, so it never lifts a cube with another on it), then lifts it; each arm
+    sets its cube on its sign and goes home. The lower cube's arm arrives beside its cube just
+    in time (its approach is slowed to end as the upper cube comes free, instead of waiting at
+    home), and the arm done first takes its way home at a pace that ends with the other's. When
+    the top two cubes differ in colour, both arms take one at once, sort them onto the signs,
+    then take and stack the last two the same way. When they share a colour, that colour's arm
+    takes the top cube to its sign alone and comes straight back beside the second (where that
+    way is no longer than going home and back; the other arm comes to the tower meanwhile and
+    stops 6 cm short of the cube it takes next, covering the rest as the cube above it rises),
+    then it takes the second while the other arm takes the third and comes back for the bottom
+    cube (straight, on the same condition), which it takes alone: turn-taking forced by the
+    tower and the colours - the bottom cube comes free only after the third, and only its
+    colour's arm, whose cubes these both are, may take it; the other arm has no cube left and
+    goes home. A cube is never handed over: the arm of its colour reaches every level of the
+    tower from its own side (measured for the whole base range and both cube sizes), so the
+    spec's handover (when R picks an A cube) never arises. After every take the expert checks
+    that the cubes left on the tower moved less than 1 cm (else the episode is dropped:
+    ``tower_disturbed``).
 
     Randomization: the two colours (from six); which two of the four levels hold colour A
     (six towers); each cube's edge in [4, 5] cm, its centre within 3 mm of the base's axis and
@@ -305,16 +319,22 @@ class DivideBlockTower(Task):
             below = placed[side][-1]
             return stack_target(ctx.model.object_pose(below), scene.object(below).shape, shape)
 
+        approached: dict[str, Grasp] = {}  # cube -> the grasp whose pregrasp an arm came to
+
         def take(side: str, name: str, pull: bool = True) -> ArmPlan:
-            """`side` side-grasps `name`, lifts it and (with `pull`) pulls it out to its own
-            side of the tower."""
-            plan = pick(ctx, side, name, lift=LIFT, grasps=_side_grasps(ctx, side, name))
+            """`side` side-grasps `name` (first by the grasp it came beside it for, so the
+            wrist does not turn over at the pregrasp), lifts it and (with `pull`) pulls it out
+            to its own side of the tower."""
+            grasps = _side_grasps(ctx, side, name)
+            if name in approached:
+                grasps = [approached.pop(name), *grasps]
+            plan = pick(ctx, side, name, lift=LIFT, grasps=grasps)
             on_tower.remove(name)
             return plan.then(_pull_out(ctx, side)) if pull else plan
 
-        def put(side: str, name: str) -> ArmPlan:
-            """`side` sets the `name` it holds on its sign (on the cube there, if any) and
-            goes home."""
+        def put(side: str, name: str, chained: bool) -> ArmPlan:
+            """`side` sets the `name` it holds on its sign (on the cube there, if any), then
+            (`chained`) comes straight beside the cube it takes next, if any, else goes home."""
             slow = RELEASE_STEPS if placed[side] else None
             target = goal(side, name)
             try:  # the cube turned as it is held: the hand keeps pointing across the table
@@ -323,10 +343,32 @@ class DivideBlockTower(Task):
             except PlanningError:
                 plan = place(ctx, side, target, release_steps=slow)
             placed[side].append(name)
+            k = nexts[side].get(name)
+            if chained and k is not None:
+                q, opening = ctx.q.copy(), dict(ctx.opening)
+                after = _approach(ctx, side, CUBES[k], above=CUBES[k + 1], chosen=approached)
+                # only where that is no longer than going home and coming back from there
+                direct = ctx.q.copy()
+                ctx.q, ctx.opening = q.copy(), dict(opening)
+                try:
+                    home = retreat(ctx, side)
+                    back = _approach(ctx, side, CUBES[k], above=CUBES[k + 1])
+                    via_home = home.num_steps + back.num_steps
+                except PlanningError:
+                    via_home = None
+                ctx.q = direct
+                if via_home is None or after.num_steps <= via_home:
+                    return plan.then(after)
+                ctx.q, ctx.opening = q, opening
+                approached.pop(CUBES[k])
             return plan.then(retreat(ctx, side))
 
         order = scene.draws["order"]
-        for step in _steps(order):
+        steps = _steps(order)
+        nexts = _next_takes(steps)
+
+        def plan_step(step: Step, chained: bool) -> Motion:
+            put_ = partial(put, chained=chained)
             upper, arm_u, arm_o = CUBES[step.upper], step.upper_arm, step.other_arm
             if step.lower is not None:
                 # The lower cube's arm comes beside it (planned with the upper cube still on
@@ -334,20 +376,36 @@ class DivideBlockTower(Task):
                 # move is planned where the other will be meanwhile: the upper arm pulls its
                 # cube out to its side while the lower one lifts its own.
                 lower = CUBES[step.lower]
-                come = _approach(ctx, arm_o, lower, above=upper)
+                come = _approach(ctx, arm_o, lower, above=upper, chosen=approached)
                 up = take(arm_u, upper)
-                low = come.then(take(arm_o, lower, pull=False))
-                up = up.then(put(arm_u, upper))
-                low = low.then(put(arm_o, lower))
-                motion = _take_below(ctx, up, low, (upper, lower))
+                low = take(arm_o, lower, pull=False)
+                up = up.then(put_(arm_u, upper))
+                low = low.then(put_(arm_o, lower))
+                return _take_below(ctx, up, come, low, (upper, lower))
             else:
                 plans = {arm_u: take(arm_u, upper)}
-                plans[arm_u] = plans[arm_u].then(put(arm_u, upper))
+                plans[arm_u] = plans[arm_u].then(put_(arm_u, upper))
                 if step.other == "prepare":  # come beside the cube it takes next
                     k = _next_lower(order, step.upper)
-                    plans[arm_o] = _approach(ctx, arm_o, CUBES[k], above=CUBES[k + 1])
+                    plans[arm_o] = _approach(
+                        ctx, arm_o, CUBES[k], CUBES[k + 1], approached, standoff=STANDOFF
+                    )
                 with ctx.model.padded(ARM_GAP, 0.0):
-                    motion = merge(ctx, plans.get("left"), plans.get("right"))
+                    return merge(ctx, plans.get("left"), plans.get("right"))
+
+        for step in steps:
+            # Each arm goes from its sign straight to the cube it takes next; if the arms then
+            # meet at every timing, they go home between the steps instead.
+            kept = (list(on_tower), {k: list(v) for k, v in placed.items()}, dict(approached))
+            try:
+                with ctx.transaction():
+                    motion = plan_step(step, chained=True)
+            except PlanningError:
+                on_tower[:] = kept[0]
+                placed.update(kept[1])
+                approached.clear()
+                approached.update(kept[2])
+                motion = plan_step(step, chained=False)
             yield from run(motion)
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
@@ -382,6 +440,24 @@ def _steps(order: list[str]) -> list[Step]:
     if arms[3] != arms[2]:
         return [Step(3, arms[3], 2), Step(1, arms[1], 0)]
     return [Step(3, arms[3], other="prepare"), Step(2, arms[2], 1), Step(0, arms[0])]
+
+
+def _next_takes(steps: list[Step]) -> dict[str, dict[str, int]]:
+    """Per arm, for each cube it takes, the level of the next cube it takes - if it takes that
+    one as the upper cube of a step whose other arm is not still to come (a one-arm step, or
+    one whose lower cube's arm came beside it in the step before). The arm then comes
+    straight from its sign to that cube and starts at once; otherwise the other arm, coming
+    from home to wait for the cube above its own to rise, sets the pace anyway."""
+    taken: dict[str, list[tuple[int, bool]]] = {"left": [], "right": []}
+    for j, step in enumerate(steps):
+        prepared = j > 0 and steps[j - 1].other == "prepare"
+        taken[step.upper_arm].append((step.upper, step.lower is None or prepared))
+        if step.lower is not None:
+            taken[step.lower_arm].append((step.lower, False))
+    return {
+        side: {CUBES[a]: b for (a, _), (b, now) in zip(takes, takes[1:], strict=False) if now}
+        for side, takes in taken.items()
+    }
 
 
 def _next_lower(order: list[str], level: int) -> int:
@@ -438,39 +514,128 @@ def _side_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
     return mine
 
 
-def _approach(ctx: SkillContext, side: str, name: str, above: str) -> ArmPlan:
+def _approach(
+    ctx: SkillContext,
+    side: str,
+    name: str,
+    above: str,
+    chosen: dict[str, Grasp] | None = None,
+    standoff: float = 0.0,
+) -> ArmPlan:
     """`side` comes to the pregrasp of its first reachable side grasp of `name` and waits
     there, clear of the cube `above` it (a later :func:`pick` of `name` starts from it; its
-    grasp is checked as if `above` were gone, as it will be)."""
+    grasp is checked as if `above` were gone, as it will be). The grasp goes into `chosen`
+    under `name` (one already there is tried first). With `standoff` (m) it stops that much
+    short of the pregrasp along the grasp's approach (where it can; else at the pregrasp): a
+    later call covers the rest, straight where it can."""
     reasons = []
-    for grasp in _side_grasps(ctx, side, name):
+    grasps = _side_grasps(ctx, side, name)
+    if chosen is not None and name in chosen:  # the grasp it came toward before, first
+        grasps = [chosen[name], *grasps]
+    for grasp in grasps:
         try:
             q_pre = solve_tcp(ctx, side, TcpTarget(grasp.X_WPre))
-            solve_tcp(ctx, side, TcpTarget(grasp.X_WG), seed_arm=q_pre, ignore=[name, above])
-            return move(ctx, side, q_pre, label=f"approach {name}")
+            q_grasp = solve_tcp(
+                ctx, side, TcpTarget(grasp.X_WG), seed_arm=q_pre, ignore=[name, above]
+            )
+            # the pick's descent from here must be straight (not a wrist turning over)
+            if tcp_deviation(ctx, side, q_pre, q_grasp) > MAX_LINE_DEVIATION:
+                reasons.append("not_straight")
+                continue
+            q_goal = q_pre
+            if standoff > 0.0:
+                q_goal = _standoff(ctx, side, grasp, q_pre, standoff)
+            near = np.linalg.norm(
+                ctx.model.tcp_pose(ctx.q, side).translation() - grasp.X_WPre.translation()
+            )
+            plan = None
+            if near <= STANDOFF + 0.01:  # from its standoff: straight in
+                try:
+                    plan = move(ctx, side, q_goal, label=f"approach {name}", straight=True)
+                except PlanningError:
+                    plan = None
+            if plan is None:
+                plan = move(ctx, side, q_goal, label=f"approach {name}")
+            if chosen is not None:
+                chosen[name] = grasp
+            return plan
         except PlanningError as err:
             reasons.append(err.reason)
     raise PlanningError("approach_failed", f"{side} cannot come beside {name!r} ({reasons})")
 
 
+def _standoff(
+    ctx: SkillContext, side: str, grasp: Grasp, q_pre: np.ndarray, standoff: float
+) -> np.ndarray:
+    """`side`'s joints `standoff` (m) short of `grasp`'s pregrasp along its approach, if the
+    straight move from there to `q_pre` is free with the other arm where it is now; else
+    `q_pre`."""
+    X = grasp.X_WPre
+    p = X.translation() - standoff * np.asarray(grasp.approach, dtype=float)
+    try:
+        q = solve_tcp(ctx, side, TcpTarget(RigidTransform(X.rotation(), p)))
+    except PlanningError:
+        return q_pre
+    if ctx.edge_free(ctx.with_arm(side, q), ctx.with_arm(side, q_pre)):
+        return q
+    return q_pre
+
+
 def _take_below(
-    ctx: SkillContext, upper_plan: ArmPlan, lower_plan: ArmPlan, names: tuple[str, str]
+    ctx: SkillContext,
+    upper_plan: ArmPlan,
+    come: ArmPlan,
+    take: ArmPlan,
+    names: tuple[str, str],
 ) -> Motion:
-    """Both take plans at once, the lower cube's arm held back (if need be) until the upper
-    cube has risen CLEAR_RISE off it before its fingers move in from the pregrasp, and further
-    until the arms keep ARM_GAP apart throughout (`names`: the two cubes, which change hands)."""
+    """Both take plans at once (the lower cube's arm comes beside its cube, `come`, then takes
+    and puts it, `take`). The lower arm's fingers move in from the pregrasp only once the upper
+    cube has risen CLEAR_RISE off it, and later still if the arms would come closer than
+    ARM_GAP (`names`: the two cubes, which change hands). It arrives just in time: its way to
+    the pregrasp is slowed to end then (held back at its start only if it has no way to go).
+    The arm that sets its cube down first takes its way home at a pace that ends with the
+    other's (:func:`slowed_after`, from where it let go)."""
+    lower_plan = come.then(take)
     clear = _risen(ctx, upper_plan, CLEAR_RISE)
     enter = _entering(ctx, lower_plan)
     start = max(0, clear - enter)
-    for delay in range(start, start + MAX_DELAY + 1, 3):
-        plans = {upper_plan.side: upper_plan, lower_plan.side: lower_plan.delayed(delay)}
-        motion = combine(plans["left"], plans["right"])
-        if ctx.checked(motion, ARM_GAP, 0.0, ignore=names):
-            motion.info["lower_delay"] = delay
-            return motion
+    for together in (True, False):
+        for delay in range(start, start + MAX_DELAY + 1, 3):
+            plans = {upper_plan.side: upper_plan, come.side: _arrive_late(come, delay).then(take)}
+            if together:
+                plans = _end_together(plans)
+            motion = combine(plans["left"], plans["right"])
+            if ctx.checked(motion, ARM_GAP, 0.0, ignore=names):
+                motion.info["lower_delay"] = delay
+                return motion
     raise PlanningError(
         "arm_conflict", f"the arms taking {names} meet at every delay up to {start + MAX_DELAY}"
     )
+
+
+def _arrive_late(come: ArmPlan, delay: int) -> ArmPlan:
+    """`come` taking `delay` control steps longer: slowed if it moves, else held at its start."""
+    if delay <= 0:
+        return come
+    if come.num_steps > 1 and np.any(come.q != come.q[0]):
+        return come.stretched(come.num_steps + delay)
+    return come.delayed(delay)
+
+
+def _end_together(plans: dict[str, ArmPlan]) -> dict[str, ArmPlan]:
+    """The shorter plan's way back, from where its gripper is open after it last let go,
+    slowed to end with the other."""
+    n = max(p.num_steps for p in plans.values())
+    out = {}
+    for side, plan in plans.items():
+        let_go = [i for i, kind, _ in plan.events if kind == "detach"]
+        if not let_go:
+            out[side] = plan
+            continue
+        i = max(let_go)
+        opened = i + int(np.argmax(plan.opening[i:] >= plan.opening[i:].max()))
+        out[side] = slowed_after(plan, opened, n)
+    return out
 
 
 def _tcp_track(ctx: SkillContext, plan: ArmPlan) -> np.ndarray:

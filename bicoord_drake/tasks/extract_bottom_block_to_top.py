@@ -23,12 +23,14 @@ from bicoord_drake.planning.skills import (
     first_step_in_zone,
     grip,
     hold,
+    leave_as_arrives,
     merge,
     move_tcp,
     pick,
     place,
     pull,
     retreat,
+    slowed_after,
     track,
 )
 from bicoord_drake.stages import Stage
@@ -77,6 +79,10 @@ MAX_DELAY = 60
 RELEASE_STEPS = 12
 #: Clearance (m) between the arms while both hold the stack (their fingers pass 2-4 cm apart).
 CLOSE_CLEARANCE = 0.01
+#: Where the lifter's empty hand steps back from the stack while the pulled cube is set on
+#: top (out of the way, not all the way home), best first: (m back along its approach axis,
+#: toward its own side, up).
+STEP_BACK = ((0.08, 0.0, 0.0), (0.06, 0.06, 0.0), (0.08, 0.0, 0.06))
 #: Height (m) of the carried cube's bottom above the two-cube stack before it is set on top.
 ABOVE_STACK = 0.05
 #: Control steps both arms hold still at the end: the stack must be seen at rest for 0.3 s.
@@ -96,10 +102,12 @@ class ExtractBottomBlockToTop(Task):
     control steps after the lifter's lift ends, or as soon as the extractor's own grasp is
     closed if that is later; where the two approaches would meet, one arm's whole plan starts
     a few steps later and the wait is recomputed. Then the lifter lowers the middle cube (with
-    the top one) onto the platform, lets go slowly and backs off while the extractor raises the
-    pulled cube beside the platform and carries it over the stack - entering the space above
-    the stack only once the lowering is done; finally the lifter retreats home while the
-    extractor sets the cube on top and lets go.
+    the top one) onto the platform, lets go slowly and backs off (at a pace that ends with the
+    extractor's carry) while the extractor raises the pulled cube beside the platform and
+    carries it over the stack - entering the space above the stack only once the lowering is
+    done; finally the lifter steps further back out of the way (not all the way home; home if
+    no step back is reachable) as the extractor sets the cube on top, its step timed to end
+    with the placing, and the extractor lets go.
 
     Randomization: the platform's centre x in [-0.05, 0], y in [-0.05, 0.10] (the reference's
     layout); the cube edge in [4, 6] cm (all three equal); which arm extracts (the other lifts);
@@ -224,12 +232,13 @@ class ExtractBottomBlockToTop(Task):
             lowering = _lower_and_raise(ctx, scene, ext, lifter)
         yield from run(lowering)
         # ---- stage 3: the lifter retreats, the extractor sets the cube on top
-        goal = stack_target(ctx.model.object_pose(top), _shape(scene), _shape(scene))
-        plans = {
-            lifter: retreat(ctx, lifter),
-            ext: place(ctx, ext, goal, approach_height=ABOVE_STACK, release_steps=RELEASE_STEPS),
-        }
-        yield from run(merge(ctx, plans["left"], plans["right"]))
+        # (it leaves as the cube arrives; its way home ends with the placing)
+        X_top = ctx.model.object_pose(top)
+        goal = stack_target(X_top, _shape(scene), _shape(scene))
+        leaving = _step_back(ctx, lifter)
+        placing = place(ctx, ext, goal, approach_height=ABOVE_STACK, release_steps=RELEASE_STEPS)
+        zone = scene.draws["edge"] + 0.02
+        yield from run(leave_as_arrives(ctx, leaving, placing, X_top.translation()[:2], zone))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
@@ -308,20 +317,40 @@ def _lower_and_raise(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> 
     X_back = RigidTransform(X.rotation(), X.translation() - 0.06 * X.rotation().col(0))
     back = move_tcp(ctx, lifter, X_back, label="back off", ignore=[middle, top], straight=True)
     lifter_plan = down.then(opened, back)
-    lifter_plan.events.append((down.num_steps + opened.num_steps - 2, "detach", middle))
+    let_go = down.num_steps + opened.num_steps - 2
+    lifter_plan.events.append((let_go, "detach", middle))
     # the extractor: up out beside the platform, then over the stack
     goal = stack_target(lowered, _shape(scene), _shape(scene))
     ext_plan = _carry_over(ctx, ext, goal, ABOVE_STACK)
     xy = lowered.translation()[:2]
     into = first_step_in_zone(ctx, ext_plan, xy, edge + 0.02)
     wait = max(0, down.num_steps + 1 - into)
-    # where the arms would still meet, the extractor waits longer (never less)
+    # where the arms would still meet, the extractor waits longer (never less); the lifter
+    # backs off from the stack it let go at a pace that ends with the extractor's carry (at
+    # its own pace if that meets the extractor)
     for extra in range(0, MAX_DELAY + 1, 3):
-        try:
-            return _together(ctx, ext, ext_plan.delayed(wait + extra), lifter_plan, ignore=[top])
-        except PlanningError as err:
-            reason = err.reason
+        carry = ext_plan.delayed(wait + extra)
+        for backing in (slowed_after(lifter_plan, let_go, carry.num_steps), lifter_plan):
+            try:
+                return _together(ctx, ext, carry, backing, ignore=[top])
+            except PlanningError as err:
+                reason = err.reason
     raise PlanningError("arm_conflict", f"lowering and raising meet at every delay ({reason})")
+
+
+def _step_back(ctx: SkillContext, side: str) -> ArmPlan:
+    """`side`'s empty hand further back from the stack, out of the way of the cube set on
+    top: the first of STEP_BACK (m back along its approach axis, toward its own side, up)
+    it can reach, else home."""
+    X = ctx.model.tcp_pose(ctx.q, side)
+    sign = 1.0 if side == "right" else -1.0
+    for back, aside, up in STEP_BACK:
+        away = X.translation() - back * X.rotation().col(0) + [sign * aside, 0.0, up]
+        try:
+            return move_tcp(ctx, side, RigidTransform(X.rotation(), away), label="step back")
+        except PlanningError:
+            continue
+    return retreat(ctx, side)
 
 
 def _carry_over(ctx: SkillContext, side: str, goal: RigidTransform, height: float) -> ArmPlan:

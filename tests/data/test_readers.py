@@ -144,6 +144,46 @@ def test_bad_stage_sidecar_names_the_json(tmp_path):
         read_trajectory(path)
 
 
+def joint_vector() -> np.ndarray:
+    """(T, 14) ViperX-pair rows: left joint 0 climbs 0 -> 0.9 rad, right joint 5 falls 0 ->
+    -0.45, both grippers swing open and shut (not arm joints)."""
+    s = np.linspace(0.0, 1.0, T)
+    vec = np.zeros((T, 14))
+    vec[:, 0], vec[:, 12] = 0.9 * s, -0.45 * s
+    vec[:, 6] = vec[:, 13] = np.arange(T) % 2
+    return vec
+
+
+def test_our_layout_reads_arm_joints_from_the_measured_joint_state(tmp_path):
+    vec = joint_vector()
+    data = {**ours_datasets(), "joint_state/vector": vec, "joint_action/vector": 2 * vec}
+    traj = read_trajectory(write(tmp_path / "e.hdf5", data, OURS_ATTRS))
+    np.testing.assert_array_equal(traj.left_q, vec[:, 0:6])
+    np.testing.assert_array_equal(traj.right_q, vec[:, 7:13])
+    assert read_trajectory(write(tmp_path / "f.hdf5", ours_datasets(), OURS_ATTRS)).left_q is None
+    bad = {**ours_datasets(), "joint_state/vector": vec[:-1]}
+    with pytest.raises(ValueError, match="mismatched lengths: .*'joint_state/vector' has 9"):
+        read_trajectory(write(tmp_path / "g.hdf5", bad, OURS_ATTRS))
+    odd = {**ours_datasets(), "joint_state/vector": vec[:, :13]}
+    with pytest.raises(ValueError, match=r"'joint_state/vector' has shape \(10, 13\)"):
+        read_trajectory(write(tmp_path / "h.hdf5", odd, OURS_ATTRS))
+
+
+def test_robotwin_arm_joints_and_bicoord_has_none(tmp_path):
+    vec = joint_vector()
+    data = {
+        **robotwin_datasets(),
+        "joint_action/left_arm": vec[:, 0:6],
+        "joint_action/right_arm": vec[:, 7:13],
+    }
+    traj = read_trajectory(write(tmp_path / "r" / "episode0.hdf5", data))
+    assert traj.layout == "robotwin"
+    np.testing.assert_array_equal(traj.right_q, vec[:, 7:13])
+    assert read_trajectory(write(tmp_path / "r1.hdf5", robotwin_datasets())).right_q is None
+    bicoord = read_trajectory(write(tmp_path / "b.hdf5", {"endpose": bicoord_endpose()}))
+    assert (bicoord.left_q, bicoord.right_q) == (None, None)
+
+
 def test_task_from_path():
     assert task_from_path("/d/lift_pot/demo_clean/data/episode0.hdf5") == "lift_pot"
     assert task_from_path("/d/lift_pot/episode0.hdf5") == "lift_pot"

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 SCRIPT = Path(__file__).resolve().parents[2] / "scripts" / "metrics.py"
-KEYS = ["SMT", "SMP", "MRD", "ARD", "STI", "TL", "SN", "ON"]
+KEYS = ["SMT", "SMP", "MRD", "ARD", "STI", "TL", "SN", "ON", "PL"]
 
 
 @pytest.fixture(scope="module")
@@ -22,8 +22,10 @@ def cli():
     return module
 
 
-def write_episode(path: Path, *, task: str | None, length: int = 8) -> None:
-    """Arms approach along x with the left gripper closed; ours if ``task`` is given."""
+def write_episode(path: Path, *, task: str | None, length: int = 8, joints: bool = True) -> None:
+    """Arms approach along x with the left gripper closed; ours if ``task`` is given. With
+    ``joints`` the arm joints travel 0.6 rad (left joint 1 up 0.4, right joint 3 down 0.2) in
+    ``joint_state/vector`` (ours) or ``joint_action/{left,right}_arm`` (RoboTwin)."""
     s = np.linspace(0.0, 1.0, length)[:, None]
     quat = np.tile([1.0, 0.0, 0.0, 0.0], (length, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -32,6 +34,14 @@ def write_episode(path: Path, *, task: str | None, length: int = 8) -> None:
         f["endpose/right_endpose"] = np.hstack([[0.3, 0.5, 0.9] - s * [0.1, 0.0, 0.0], quat])
         f["joint_action/left_gripper"] = np.zeros(length)
         f["joint_action/right_gripper"] = np.ones(length)
+        vec = np.zeros((length, 14))
+        vec[:, 1], vec[:, 10] = 0.4 * s[:, 0], -0.2 * s[:, 0]
+        vec[:, 6] = np.arange(length) % 2  # a gripper opening: no arm joint
+        if joints and task is not None:
+            f["joint_state/vector"] = vec
+            f["joint_action/vector"] = np.zeros((length, 14))  # commands: not measured
+        elif joints:
+            f["joint_action/left_arm"], f["joint_action/right_arm"] = vec[:, 0:6], vec[:, 7:13]
         if task is not None:
             f["stages/start"] = np.array([0, length // 2])
             f.attrs.update({"task": task, "schema_version": "1.0", "object_count": 3})
@@ -76,6 +86,17 @@ def test_json(cli, dataset, capsys):
     assert (lift["TL"], lift["SN"], lift["ON"]) == (8.0, 2.0, 3.0)
     assert out["per_task"]["stack"]["SN"] is None and out["per_task"]["stack"]["ON"] is None
     assert out["overall"]["TL"] == pytest.approx((8 + 8 + 12 + 8) / 4)
+    assert lift["PL"] == pytest.approx(0.6)
+    assert out["per_task"]["stack"]["PL"] == pytest.approx(0.6)  # RoboTwin's arm joints
+    assert out["overall"]["PL"] == pytest.approx(0.6)
+
+
+def test_path_length_is_missing_without_joint_positions(cli, tmp_path, capsys):
+    write_episode(tmp_path / "lift" / "episode0.hdf5", task="lift", joints=False)
+    assert cli.main([str(tmp_path), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["overall"]["PL"] is None
+    assert cli.main([str(tmp_path)]) == 0
+    assert capsys.readouterr().out.splitlines()[2].endswith("| 3.00 | - |")
 
 
 def test_plot(cli, dataset, tmp_path, capsys):

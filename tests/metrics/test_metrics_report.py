@@ -20,7 +20,7 @@ def xs(*values):
     return np.array([[v, 0.0, 0.0] for v in values])
 
 
-def traj(task, left, right, lg, rg, n_stages=None, n_objects=None, source=None):
+def traj(task, left, right, lg, rg, n_stages=None, n_objects=None, source=None, q=None):
     return Trajectory(
         source=source or f"{task}.hdf5",
         task=task,
@@ -31,6 +31,8 @@ def traj(task, left, right, lg, rg, n_stages=None, n_objects=None, source=None):
         right_gripper=np.asarray(rg, float),
         n_stages=n_stages,
         n_objects=n_objects,
+        left_q=None if q is None else q[0],
+        right_q=None if q is None else q[1],
     )
 
 
@@ -72,7 +74,7 @@ def test_dataset_metrics_are_means_of_per_trajectory_values(trajectories):
 def test_json_has_exactly_the_table_keys_in_percent(trajectories):
     out = json.loads(json.dumps(dataset_metrics(trajectories).to_json_dict()))
     assert set(out) == {"per_task", "overall"}
-    keys = ["SMT", "SMP", "MRD", "ARD", "STI", "TL", "SN", "ON"]
+    keys = ["SMT", "SMP", "MRD", "ARD", "STI", "TL", "SN", "ON", "PL"]
     for row in [*out["per_task"].values(), out["overall"]]:
         assert list(row) == keys
     assert out["per_task"]["a"]["SMP"] == pytest.approx(25.0)
@@ -84,13 +86,31 @@ def test_json_has_exactly_the_table_keys_in_percent(trajectories):
 def test_table_and_csv(trajectories):
     m = dataset_metrics(trajectories)
     table = format_table(m).splitlines()
-    assert table[0] == "| Task | N | SMT | SMP % | MRD % | ARD % | STI % | TL | SN | ON |"
-    assert table[2] == "| a | 2 | 1.0 | 25.00 | 75.00 | 84.38 | 9.38 | 3.0 | 4.00 | 3.00 |"
-    assert table[3].startswith("| b | 1 | 2.0 | 100.00 |") and table[3].endswith("| - | - |")
+    assert table[0] == "| Task | N | SMT | SMP % | MRD % | ARD % | STI % | TL | SN | ON | PL |"
+    assert table[2] == "| a | 2 | 1.0 | 25.00 | 75.00 | 84.38 | 9.38 | 3.0 | 4.00 | 3.00 | - |"
+    assert table[3].startswith("| b | 1 | 2.0 | 100.00 |") and table[3].endswith("| - | - | - |")
     assert table[4].startswith("| overall | 3 |")
     csv = format_csv(m).splitlines()
-    assert csv[0] == "task,n,SMT,SMP,MRD,ARD,STI,TL,SN,ON"
-    assert csv[2].startswith("b,1,2.0,100.0,") and csv[2].endswith(",,")
+    assert csv[0] == "task,n,SMT,SMP,MRD,ARD,STI,TL,SN,ON,PL"
+    assert csv[2].startswith("b,1,2.0,100.0,") and csv[2].endswith(",,,")
+
+
+def test_path_length_is_the_mean_of_per_trajectory_joint_travel():
+    # Left arm: joint 0 goes 0 -> 0.5 -> 0.2 (0.8 rad), joint 1 still; right arm: joint 1 goes
+    # 0 -> -0.25 -> -0.25 (0.25 rad): PL = 1.05. A second episode travels 1.95 rad: task mean 1.5.
+    left = np.array([[0.0, 1.0], [0.5, 1.0], [0.2, 1.0]])
+    right = np.array([[0.0, 0.0], [0.0, -0.25], [0.0, -0.25]])
+    p1 = traj("p", xs(0, 0, 0), xs(1, 1, 1), [1] * 3, [1] * 3, q=(left, right))
+    p2 = traj(
+        "p", xs(0, 0), xs(1, 1), [1] * 2, [1] * 2, q=(np.array([[0.0], [1.95]]), np.zeros((2, 1)))
+    )
+    m = dataset_metrics([p1, p2])
+    assert [e.path_length for e in m.episodes] == [pytest.approx(1.05), pytest.approx(1.95)]
+    assert m.per_task["p"].pl == pytest.approx(1.5)
+    assert format_table(m).splitlines()[2].endswith("| 1.50 |")
+    # One episode without joint positions makes the group's PL unknown, not a smaller number.
+    mixed = dataset_metrics([p1, traj("p", xs(0, 0), xs(1, 1), [1] * 2, [1] * 2)])
+    assert mixed.per_task["p"].pl is None and mixed.to_json_dict()["overall"]["PL"] is None
 
 
 def test_dataset_metrics_names_the_bad_trajectory(trajectories):

@@ -38,6 +38,8 @@ module                    skills
 :mod:`.drawer`            :func:`grasp_handle`, :func:`slide_drawer` (the TCP along a
                           drawer's slide axis; the model's drawer follows),
                           :func:`let_go_handle`
+:mod:`.overlap`           :func:`leave_as_arrives` (the leaving arm's way back timed to end
+                          with the arriving arm's work), :func:`slowed_after`
 :mod:`.turns`             :func:`arrive_as_leaves` (turn-taking at a shared spot: one arm
                           arrives as the other leaves), :func:`take_turn` (the same with
                           fallbacks when the arms conflict), :func:`arrival_delay`,
@@ -83,6 +85,7 @@ from bicoord_drake.planning.skills.handover import (
     handover,
     meet_motion,
 )
+from bicoord_drake.planning.skills.overlap import leave_as_arrives, slowed_after
 from bicoord_drake.planning.skills.pick_place import (
     carry_above,
     drop_into,
@@ -124,6 +127,7 @@ __all__ = [
     "handover",
     "hold",
     "least_spin_velocity",
+    "leave_as_arrives",
     "lift",
     "meet_motion",
     "merge",
@@ -140,6 +144,7 @@ __all__ = [
     "release_together",
     "retreat",
     "solve_tcp",
+    "slowed_after",
     "stabilize",
     "take_turn",
     "tcp_deviation",

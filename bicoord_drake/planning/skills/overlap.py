@@ -1,0 +1,84 @@
+"""Overlapping phases: an arm that is done at a shared spot leaves at its own pace and takes
+the rest of its way back as long as the arriving arm needs there.
+
+:func:`arrive_as_leaves` already lets the arriving arm approach while the leaving one goes;
+the leaving arm then stands at its goal while the other still lowers, releases and backs off.
+:func:`leave_as_arrives` times the same leaving path differently: unchanged until its TCP is out
+of the shared zone, then slowed smoothly (:func:`slowed_after`: the speed blends down, never
+jumps) so that it ends when the arriving arm's plan ends. The path is the planned one, only its
+timing after the zone changes, so nothing is added to the motion; the merged motion is checked
+like any other (:func:`merge`), and a conflict falls back to :func:`take_turn`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.skills.core import ArmPlan, Motion, SkillContext, merge
+from bicoord_drake.planning.skills.turns import arrival_delay, first_step_in_zone, take_turn
+
+#: Control steps over which a slowed tail blends from the plan's own speed to the slower one.
+BLEND_STEPS = 15
+
+
+def slowed_after(plan: ArmPlan, start: int, num_steps: int, blend: int = BLEND_STEPS) -> ArmPlan:
+    """`plan` with its samples after `start` slowed so that it has `num_steps` samples.
+
+    Samples 0..`start` are unchanged; after them the progress per control step blends from 1
+    (the plan's own pace) down to a constant rate c < 1 over `blend` steps (a raised-cosine
+    blend, so the commanded velocity changes gradually and only shrinks; accelerations only
+    shrink with it). Openings follow the same time map, events keep their place along the
+    motion. A plan already as long, or a `start` at its end, is returned as is."""
+    m = plan.num_steps
+    start = max(0, min(int(start), m - 1))
+    if num_steps <= m or start >= m - 1:
+        return plan
+    steps_new, steps_old = num_steps - 1 - start, m - 1 - start
+    for b in range(min(blend, steps_new), -1, -1):
+        k = np.arange(1, steps_new + 1)
+        h = np.where(k <= b, 0.5 * (1.0 + np.cos(np.pi * k / max(b, 1))), 0.0)
+        c = (steps_old - h.sum()) / (steps_new - h.sum())
+        if 0.0 < c <= 1.0:
+            break
+    tau = np.concatenate([np.arange(start + 1, dtype=float), start + np.cumsum(c + (1 - c) * h)])
+    tau[-1] = m - 1  # the goal exactly
+    old = np.arange(m)
+    q = np.column_stack([np.interp(tau, old, plan.q[:, j]) for j in range(plan.q.shape[1])])
+    opening = np.interp(tau, old, plan.opening)
+    events = [(int(np.searchsorted(tau, i - 1e-9)), kind, name) for i, kind, name in plan.events]
+    return ArmPlan(plan.side, q, opening, events, plan.label)
+
+
+def leave_as_arrives(
+    ctx: SkillContext,
+    leaver: ArmPlan,
+    arriver: ArmPlan,
+    center_xy: Sequence[float],
+    radius: float,
+    *,
+    lag_steps: int = 3,
+    ignore: Sequence[str] = (),
+) -> Motion:
+    """The leaver's and the arriver's plans at once: the arriver delayed by
+    :func:`arrival_delay` (its TCP enters the zone of `radius` around `center_xy` `lag_steps`
+    after the leaver's has left it), the leaver at its own pace until it is out of the zone,
+    then slowed (:func:`slowed_after`) to end with the arriver. Checked by :func:`merge`
+    without stretching; if the arms would meet, :func:`take_turn` times the plans instead.
+
+    Plan the leaver first, so that the arriver is planned around where the leaver ends."""
+    if leaver.side == arriver.side:
+        raise ValueError(f"leaver and arriver are both the {leaver.side} arm")
+    delay = arrival_delay(ctx, leaver, arriver, center_xy, radius, lag_steps)
+    arriving = arriver.delayed(delay)
+    out = first_step_in_zone(ctx, leaver, center_xy, radius, inside=False)
+    leaving = slowed_after(leaver, out, arriving.num_steps)
+    plans = {leaver.side: leaving, arriver.side: arriving}
+    try:
+        return merge(ctx, plans["left"], plans["right"], stretch=False, ignore=ignore)
+    except PlanningError as err:
+        if err.reason != "arm_conflict":
+            raise
+    return take_turn(ctx, leaver, arriver, center_xy, radius, lag_steps=lag_steps, ignore=ignore)

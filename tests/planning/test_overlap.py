@@ -1,0 +1,84 @@
+"""Overlapping phases: a leaving arm's way back slowed after the shared zone (slowed_after,
+leave_as_arrives)."""
+
+import numpy as np
+import pytest
+from pydrake.all import RigidTransform
+
+import bicoord_drake.tasks.clean_table as ct
+from bicoord_drake.models.scene import TABLE_TOP
+from bicoord_drake.planning.model import PlanningModel
+from bicoord_drake.planning.skills import (
+    ArmPlan,
+    SkillContext,
+    arrive_as_leaves,
+    first_step_in_zone,
+    leave_as_arrives,
+    move_tcp,
+    retreat,
+    slowed_after,
+)
+
+RADIUS = 0.12
+LAG = 3
+
+
+def _plan(n=30):
+    t = np.linspace(0.0, 1.0, n)
+    s = t * t * (3 - 2 * t)  # rest to rest
+    q = np.column_stack([0.8 * s, -0.4 * s])
+    opening = np.where(np.arange(n) < 20, 0.0, 1.0)
+    return ArmPlan("left", q, opening, [(20, "detach", "cube")], "p")
+
+
+def test_slowed_after_keeps_the_head_and_the_path_and_only_slows_the_tail():
+    plan = _plan()
+    slow = slowed_after(plan, 10, 61)
+    assert slow.num_steps == 61
+    np.testing.assert_array_equal(slow.q[:11], plan.q[:11])  # unchanged up to the start
+    np.testing.assert_array_equal(slow.q[-1], plan.q[-1])  # the same goal, exactly
+    # the same path: every sample lies on the plan's (straight here) joint line, in order
+    ratio = slow.q[:, 1] / -0.4
+    np.testing.assert_allclose(slow.q[:, 0], ratio * 0.8, atol=1e-12)
+    assert np.all(np.diff(slow.q[:, 0]) >= -1e-12)
+    # never faster than the plan's own fastest step, and the speed blends down (no jump)
+    v_old, v_new = np.diff(plan.q[:, 0]), np.diff(slow.q[:, 0])
+    assert v_new.max() <= v_old.max() + 1e-12
+    assert np.max(np.abs(np.diff(v_new))) <= np.max(np.abs(np.diff(v_old))) + 1e-12
+    # the detach event and the gripper keep their place along the motion
+    ((i, kind, name),) = slow.events
+    assert (kind, name) == ("detach", "cube") and slow.q[i, 0] >= plan.q[20, 0] - 1e-12
+    assert slow.opening[i] == 1.0 and slow.opening[i - 1] < 1.0
+
+
+def test_slowed_after_leaves_a_long_enough_plan_alone():
+    plan = _plan()
+    assert slowed_after(plan, 10, 30) is plan
+    assert slowed_after(plan, 29, 50) is plan
+
+
+def _to_bin(ctx, side, dx=0.0):
+    X = ctx.model.tcp_pose(ctx.q, side)
+    above = [ct.BIN_XY[0] + dx, ct.BIN_XY[1], TABLE_TOP + 0.2]
+    return move_tcp(ctx, side, RigidTransform(X.rotation(), above))
+
+
+def test_leave_as_arrives_times_the_arrival_and_ends_the_leave_with_it():
+    ctx = SkillContext(PlanningModel(ct.CleanTable().sample_scene(0)))
+    _to_bin(ctx, "right", 0.03)
+    _to_bin(ctx, "left", -0.14)
+    leave = retreat(ctx, "right")
+    arrive = _to_bin(ctx, "left", -0.03)
+    timed = arrive_as_leaves(ctx, leave, arrive, ct.BIN_XY, RADIUS, lag_steps=LAG)
+    motion = leave_as_arrives(ctx, leave, arrive, ct.BIN_XY, RADIUS, lag_steps=LAG)
+    left, right = ctx.model.side_slice("left"), ctx.model.side_slice("right")
+    # the arriver's timing is arrive_as_leaves'; the motion is no longer
+    np.testing.assert_array_equal(motion.q[:, left], timed.q[:, left])
+    assert motion.num_steps == timed.num_steps
+    # the leaver is unchanged until it is out of the zone, then still moving at the end
+    out = first_step_in_zone(ctx, leave, ct.BIN_XY, RADIUS, inside=False)
+    np.testing.assert_array_equal(motion.q[: out + 1, right], leave.q[: out + 1])
+    assert np.any(motion.q[-2, right] != motion.q[-1, right])
+    np.testing.assert_array_equal(motion.q[-1, right], leave.q[-1])
+    with pytest.raises(ValueError, match="both the right arm"):
+        leave_as_arrives(ctx, leave, leave, ct.BIN_XY, RADIUS)
