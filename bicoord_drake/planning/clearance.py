@@ -119,10 +119,17 @@ class HandRoom:
         return out
 
 
+#: A margin this far below zero (m) still counts as room: the hand samples and boxes are
+#: approximate, and a grasp whose fingertips stop exactly the clearance above the table
+#: reads a rounding error short of it.
+MARGIN_TOL = 1e-4
+
+
 def roomy_first(items: Sequence, margins: Sequence[float]) -> list:
-    """`items` (best first) with those whose margin is negative moved behind the others, the
-    crowded ones by decreasing margin; order is kept otherwise."""
-    ok = [it for it, m in zip(items, margins, strict=True) if m >= 0]
-    crowded = [(m, i, it) for i, (it, m) in enumerate(zip(items, margins, strict=True)) if m < 0]
+    """`items` (best first) with those whose margin is negative (beyond MARGIN_TOL) moved
+    behind the others, the crowded ones by decreasing margin; order is kept otherwise."""
+    pairs = list(zip(items, margins, strict=True))
+    ok = [it for it, m in pairs if m >= -MARGIN_TOL]
+    crowded = [(m, i, it) for i, (it, m) in enumerate(pairs) if m < -MARGIN_TOL]
     crowded.sort(key=lambda t: (-t[0], t[1]))
     return ok + [it for _, _, it in crowded]

@@ -298,6 +298,27 @@ def carry_above(
     )
 
 
+def carry_margin(
+    ctx: SkillContext,
+    side: str,
+    X_WO_goal: RigidTransform,
+    *,
+    height: float = 0.06,
+    ignore: Iterable[str] = (),
+) -> float:
+    """How much room (m, :class:`HandRoom` margin; negative: too little) the hand of `side`
+    has with its held object `height` above `X_WO_goal`, at the roomiest of the object's
+    symmetric yaws: a cheap way to rank several candidate goals before planning any (no IK)."""
+    held = ctx.model.held.get(side)
+    if held is None:
+        raise PlanningError("gripper_empty", f"{side} holds nothing to carry")
+    shape = ctx.model.object(held.name).shape
+    X_TO = RigidTransform([-ctx.model.embodiment.arm.gripper.tcp_x, 0, 0]) @ held.X_GO
+    room = HandRoom(ctx.model, side, ctx.q, exclude=ignore)
+    cands = place_candidates(X_TO, X_WO_goal, shape, lift=height)
+    return max(room.margin((c.X_WPre,), ctx.env_clearance, ctx.clearance) for c in cands)
+
+
 def _place_moves(
     ctx: SkillContext,
     side,
