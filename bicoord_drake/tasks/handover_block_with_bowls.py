@@ -27,7 +27,6 @@ from bicoord_drake.planning.skills import (
     move,
     pick,
     place,
-    plan_both,
     pour,
     solve_tcp,
 )
@@ -276,14 +275,9 @@ class HandoverBlockWithBowls(Task):
             yield from run(merge(ctx, left, right))
             # ---- stage 2: right holds its bowl under the meeting point, left brings its spout
             # lip above it; only when the measured rims are aligned does left tilt.
-            # (planned in either order: the arm planned second works around the first's hand)
-            parts = {
-                "right": lambda: move(
-                    ctx, "right", _catch_joints(ctx), label="hold under the spout"
-                ),
-                "left": lambda: move(ctx, "left", _spout_joints(ctx), label="align the spout"),
-            }
-            yield from run(merge(ctx, *plan_both(ctx, parts, order=("right", "left"))))
+            right = move(ctx, "right", _catch_joints(ctx), label="hold under the spout")
+            left = move(ctx, "left", _spout_joints(ctx), label="align the spout")
+            yield from run(merge(ctx, left, right))
             for attempt in range(2):
                 error = _misalignment(view)
                 if error is None:
@@ -294,12 +288,9 @@ class HandoverBlockWithBowls(Task):
                 yield from run(merge(ctx, left, None))
             yield from run(merge(ctx, _pour_at_lip(ctx, POUR_ANGLE, POUR_HOLD), None))
             # ---- stage 3: left puts its empty bowl back, right sets its bowl on the target
-            goals = {
-                "left": table_target(left_xy, scene.object("pour_bowl").shape),
-                "right": table_target(target_xy, CATCH_BOWL),
-            }
-            places = {side: partial(place, ctx, side, goals[side]) for side in goals}
-            yield from run(merge(ctx, *plan_both(ctx, places)))
+            left = place(ctx, "left", table_target(left_xy, scene.object("pour_bowl").shape))
+            right = place(ctx, "right", table_target(target_xy, CATCH_BOWL))
+            yield from run(merge(ctx, left, right))
             final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
             yield from final.actions()
 
