@@ -259,10 +259,12 @@ def run_task(
     work_dir: Path,
     randomize: bool = False,
     replay: bool = False,
+    embodiment: str | None = None,
 ) -> TaskResult:
     """Every seed of `seeds` through generate() (no rendering, no video) in `work_dir`; with
     `randomize`, on the randomized scenes (textures, table height, clutter); with `replay`,
-    then the replay check of the kept episodes (:func:`replay_check`)."""
+    then the replay check of the kept episodes (:func:`replay_check`); `embodiment`: the robot
+    (default: the default robot)."""
     from bicoord_drake.data.episode import EpisodeLayout
     from bicoord_drake.runner.generate import GenerateConfig, generate
 
@@ -276,6 +278,7 @@ def run_task(
         video=False,
         workers=workers,
         randomize=randomize,
+        **({} if embodiment is None else {"embodiment": embodiment}),
     )
     commit, dirty = git_state()
     resumed = EpisodeLayout(work_dir, task, config.config_name).manifest.exists()
@@ -289,7 +292,7 @@ def run_task(
     end_commit, end_dirty = git_state()  # the tree may change while the seeds run
     dirty = dirty or end_dirty or code_changed(commit, end_commit)
     return TaskResult(
-        task=f"{task} (randomized)" if randomize else task,
+        task=section_name(task, randomize, embodiment),
         seeds=seeds,
         kept=summary.kept,
         tried=summary.tried,
@@ -308,6 +311,13 @@ def run_task(
     )
 
 
+def section_name(task: str, randomize: bool = False, embodiment: str | None = None) -> str:
+    """The section title: '<task>', '<task> (randomized)', '<task> (franka_pair)', ..."""
+    notes = [embodiment] if embodiment else []
+    notes += ["randomized"] if randomize else []
+    return f"{task} ({', '.join(notes)})" if notes else task
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[1])
     parser.add_argument("--tasks", default="all", help="'all' or comma-separated task names")
@@ -318,6 +328,11 @@ def main(argv: list[str] | None = None) -> int:
         "--randomize",
         action="store_true",
         help="randomized scenes (generate --randomize); sections are named '<task> (randomized)'",
+    )
+    parser.add_argument(
+        "--embodiment",
+        help="the robot (a registered name; default: the default robot); sections are named "
+        "'<task> (<embodiment>)'",
     )
     parser.add_argument(
         "--replay",
@@ -346,10 +361,26 @@ def main(argv: list[str] | None = None) -> int:
     for task in tasks:
         print(f"{task}: seeds {seed_text(seeds)} ...", flush=True)
         if args.data is not None:
-            result = run_task(task, seeds, args.workers, args.data, args.randomize, args.replay)
+            result = run_task(
+                task,
+                seeds,
+                args.workers,
+                args.data,
+                args.randomize,
+                args.replay,
+                args.embodiment,
+            )
         else:
             with tempfile.TemporaryDirectory(prefix=f"expert_success_{task}_") as tmp:
-                result = run_task(task, seeds, args.workers, Path(tmp), args.randomize, args.replay)
+                result = run_task(
+                    task,
+                    seeds,
+                    args.workers,
+                    Path(tmp),
+                    args.randomize,
+                    args.replay,
+                    args.embodiment,
+                )
         text = args.out.read_text() if args.out.exists() else ""
         write_atomic(args.out, update_markdown(text, {result.task: format_section(result)}))
         replayed = f", replay {result.replay[0]}/{result.replay[1]}" if result.replay else ""

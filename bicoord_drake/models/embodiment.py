@@ -198,6 +198,29 @@ class ArmSpec(BaseModel):
     def upper(self) -> np.ndarray:
         return np.array([j.upper for j in self.joints])
 
+    def hand_boxes(self, opening: float = 1.0) -> tuple[tuple[np.ndarray, np.ndarray], ...]:
+        """The hand's extent in the TCP frame, derived from the data (no field to fill in):
+        one axis-aligned box (lo, hi) around each collision primitive of the gripper link and
+        one around both fingers at `opening`. Planners choose grasps, place yaws and staging
+        poses by it (a wide hand needs room along its finger axis y)."""
+        g = self.gripper
+        shift = np.array([g.tcp_x, 0.0, 0.0])
+        boxes = []
+        for prim in self.gripper_link.collision:
+            lo, hi = prim.trimesh().bounds
+            boxes.append((np.asarray(lo) - shift, np.asarray(hi) - shift))
+        span = float(g.finger_position(opening)) + g.pad_thickness + g.finger_thickness
+        lo = np.array([g.finger_origin_x, -span, -g.finger_height / 2]) - shift
+        hi = np.array([g.finger_origin_x + g.finger_length, span, g.finger_height / 2]) - shift
+        boxes.append((lo, hi))
+        return tuple(boxes)
+
+    def hand_half_height(self) -> float:
+        """How far the hand (its gripper link) reaches from the TCP along the gripper's z
+        either way, m: what a horizontal grasp must keep above the support."""
+        link = self.hand_boxes()[: len(self.gripper_link.collision)]
+        return max(float(max(-lo[2], hi[2])) for lo, hi in link)
+
 
 class Embodiment(BaseModel):
     """A two-arm robot: the same arm twice, at two base poses, with a home configuration."""

@@ -179,6 +179,8 @@ class PlanningModel:
         self.upper = np.tile(arm.upper, 2)
         self.home = np.tile(np.asarray(self.embodiment.home, dtype=float), 2)
         self.tcp_frames = {side: plant.GetFrameByName("tcp", self.arms[side]) for side in SIDES}
+        #: The hand's extent in the TCP frame (``ArmSpec.hand_boxes``, fingers open).
+        self.hand_boxes = arm.hand_boxes()
         self.gripper_bodies = {
             side: plant.GetBodyByName(arm.gripper_link.name, self.arms[side]) for side in SIDES
         }

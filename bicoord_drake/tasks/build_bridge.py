@@ -9,6 +9,7 @@ from functools import partial
 import numpy as np
 from pydrake.all import RigidTransform, RollPitchYaw
 
+from bicoord_drake.models.embodiment import SIDES
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
@@ -20,6 +21,7 @@ from bicoord_drake.planning.skills import (
     pick,
     pick_together,
     place,
+    plan_both,
     release_together,
     retreat,
 )
@@ -234,15 +236,20 @@ class BuildBridge(Task):
         run = partial(follow, ctx, view)
 
         # ---- stage 1: each arm picks the cube on its side, at the same time
-        yield from run(merge(ctx, pick(ctx, "left", LEFT_PIER), pick(ctx, "right", RIGHT_PIER)))
+        picks = {
+            side: partial(pick, ctx, side, pier) for side, pier in zip(SIDES, PIERS, strict=True)
+        }
+        yield from run(merge(ctx, *plan_both(ctx, picks)))
         # ---- stage 2: both set their cube at its pier spot, square to the beam, at once
         goals = {
             p: RigidTransform([x, y, TABLE_TOP + side / 2])
             for p, (x, y) in self.sites(scene).items()
         }
-        left = place(ctx, "left", goals[LEFT_PIER], release_steps=RELEASE_STEPS)
-        right = place(ctx, "right", goals[RIGHT_PIER], release_steps=RELEASE_STEPS)
-        yield from run(merge(ctx, left, right))
+        places = {
+            side: partial(place, ctx, side, goals[pier], release_steps=RELEASE_STEPS)
+            for side, pier in zip(SIDES, PIERS, strict=True)
+        }
+        yield from run(merge(ctx, *plan_both(ctx, places)))
         # ---- stage 3: both hands grasp the beam's ends, close together, lift it over the piers
         yield from run(pick_together(ctx, BEAM, lift=side + CLEAR))
         # ---- stage 4: carry it over the piers, lower it onto both, let go together, retreat

@@ -8,6 +8,7 @@ from functools import partial
 import numpy as np
 from pydrake.all import RigidTransform, RotationMatrix
 
+from bicoord_drake.models.embodiment import SIDES
 from bicoord_drake.models.geometry import Pose, Primitive
 from bicoord_drake.models.objects import (
     BoxShape,
@@ -33,6 +34,7 @@ from bicoord_drake.planning.skills import (
     move_tcp,
     pick,
     place,
+    plan_both,
     retreat,
 )
 from bicoord_drake.stages import Stage
@@ -233,23 +235,29 @@ class ExchangeMics(Task):
         run = partial(follow, ctx, view)
 
         # ---- stage 1: both pick their mic by the ball head, from above
-        left = _pick_mic(ctx, "left", "mic_left", lift=0.12)
-        right = _pick_mic(ctx, "right", "mic_right", lift=0.12)
-        yield from run(merge(ctx, left, right))
+        picks = {side: partial(_pick_mic, ctx, side, f"mic_{side}", lift=0.12) for side in SIDES}
+        yield from run(merge(ctx, *plan_both(ctx, picks)))
         # ---- stage 2: R sets mic R down in the middle while L raises mic L to the handover pose
-        right = place(ctx, "right", _standing(MIDDLE))
-        left = _carry_to(ctx, "left", np.asarray(MEET) + STAGING_OFFSET)
-        yield from run(merge(ctx, left, right))
+        parts = {
+            "right": partial(place, ctx, "right", _standing(MIDDLE)),
+            "left": partial(_carry_to, ctx, "left", np.asarray(MEET) + STAGING_OFFSET),
+        }
+        yield from run(merge(ctx, *plan_both(ctx, parts, order=("right", "left"))))
         # ---- stage 3: both arms arrive at once; R grasps the handle, then L lets go
         yield from run(_handover(ctx, "left", "right", np.asarray(MEET)))
         # ---- stage 4: L picks mic R from the middle, R retreats with mic L toward its square
-        right = _carry_to(ctx, "right", np.array([sq_r[0] - 0.05, sq_r[1], TABLE_TOP + 0.10]))
-        left = _pick_mic(ctx, "left", "mic_right", lift=0.12)
-        yield from run(merge(ctx, left, right))
+        aside = np.array([sq_r[0] - 0.05, sq_r[1], TABLE_TOP + 0.10])
+        parts = {
+            "right": partial(_carry_to, ctx, "right", aside),
+            "left": partial(_pick_mic, ctx, "left", "mic_right", lift=0.12),
+        }
+        yield from run(merge(ctx, *plan_both(ctx, parts, order=("right", "left"))))
         # ---- stage 5: crosswise placement, both at once
-        right = place(ctx, "right", _standing(sq_r))
-        left = place(ctx, "left", _standing(sq_l))
-        yield from run(merge(ctx, left, right))
+        parts = {
+            "right": partial(place, ctx, "right", _standing(sq_r)),
+            "left": partial(place, ctx, "left", _standing(sq_l)),
+        }
+        yield from run(merge(ctx, *plan_both(ctx, parts, order=("right", "left"))))
         left, right = retreat(ctx, "left"), retreat(ctx, "right")
         yield from run(merge(ctx, left, right))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))

@@ -17,6 +17,7 @@ from pydrake.all import RigidTransform
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BowlShape, BoxShape, CylinderShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
+from bicoord_drake.planning.clearance import roomy_first
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import (
     Grasp,
@@ -36,6 +37,7 @@ from bicoord_drake.planning.skills import (
     place,
     retreat,
 )
+from bicoord_drake.planning.skills.pick_place import carry_margin
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     Predicate,
@@ -254,10 +256,13 @@ class PlacePlateAndCup(Task):
         def hover(xy) -> ArmPlan:
             """Right brings its cup over `xy` (or beside it, clear of the left gripper)."""
             reasons = []
-            for dx, dy, dz in HOVER_OFFSETS:
-                goal = table_target(
-                    (xy[0] + dx, xy[1] + dy), CUP, support_z=TABLE_TOP + PLATE.height + dz
-                )
+            goals = [
+                table_target((xy[0] + dx, xy[1] + dy), CUP, support_z=TABLE_TOP + PLATE.height + dz)
+                for dx, dy, dz in HOVER_OFFSETS
+            ]
+            # the goals where the hand has room first (a wide hand meets the left one at most)
+            margins = [carry_margin(ctx, "right", goal, height=0.0) for goal in goals]
+            for goal in roomy_first(goals, margins):
                 try:
                     return carry_above(ctx, "right", goal, height=0.0)
                 except PlanningError as err:

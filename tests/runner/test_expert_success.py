@@ -152,6 +152,27 @@ def test_randomize_measures_randomized_scenes_in_their_own_section(es, tmp_path,
     assert text.count("## jigsaw (randomized)") == 1 and text.count("## jigsaw\n") == 1
 
 
+def test_embodiment_measures_another_robot_in_its_own_section(es, tmp_path, monkeypatch):
+    from bicoord_drake.runner import generate as gen
+
+    seen = {}
+
+    def fake_generate(config):
+        seen["config"] = config
+        return summary(kept=2, tried=3, mean_length=100.0)
+
+    monkeypatch.setattr(gen, "generate", fake_generate)
+    monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
+    out = tmp_path / "success.md"
+    argv = ["--tasks", "jigsaw", "--seeds", "0-2", "--out", str(out)]
+    assert es.main([*argv, "--embodiment", "franka_pair"]) == 0
+    assert seen["config"].embodiment == "franka_pair"
+    assert es.main(argv) == 0
+    assert seen["config"].embodiment != "franka_pair"
+    text = out.read_text()
+    assert text.count("## jigsaw (franka_pair)") == 1 and text.count("## jigsaw\n") == 1
+
+
 def test_section_reports_the_replay_check_and_what_did_not_reproduce(es):
     r = result(es, "cook", 10)
     assert "replay check" not in es.format_section(r)

@@ -21,6 +21,9 @@ SLOW_TASKS = (
     "clean_table",
     "fetch_block_with_roller",
     "match_blocks_with_signs",
+    "exchange_mics",
+    "place_plate_and_cup",
+    "build_bridge",
 )
 
 

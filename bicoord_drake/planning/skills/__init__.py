@@ -14,7 +14,8 @@ two n-joint arms, 14 for the ViperX pair).
 module                    skills
 ========================  ===================================================================
 :mod:`.core`              :class:`ArmPlan`, :class:`Motion`, :class:`SkillContext` (``sync``,
-                          ``refresh_grasps``, ``transaction``), :func:`merge`, :func:`hold`
+                          ``refresh_grasps``, ``transaction``), :func:`merge`, :func:`hold`,
+                          :func:`plan_both` (two arms' parts, either planned first)
 :mod:`.arm`               :func:`move`, :func:`move_tcp`, :func:`solve_tcp`, :func:`grip`,
                           :func:`lift`, :func:`retreat`,
                           :func:`tcp_deviation`
@@ -77,7 +78,14 @@ from bicoord_drake.planning.skills.bimanual import (
     track_together,
     two_hand_grasps,
 )
-from bicoord_drake.planning.skills.core import ArmPlan, Motion, SkillContext, hold, merge
+from bicoord_drake.planning.skills.core import (
+    ArmPlan,
+    Motion,
+    SkillContext,
+    hold,
+    merge,
+    plan_both,
+)
 from bicoord_drake.planning.skills.handover import (
     ReceiverGrasps,
     crossing_grasps,
@@ -131,6 +139,7 @@ __all__ = [
     "lift",
     "meet_motion",
     "merge",
+    "plan_both",
     "on_wrist_branch",
     "move",
     "move_tcp",

@@ -10,7 +10,7 @@ measured values, :meth:`SkillContext.transaction` rolls a failed multi-step plan
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
@@ -307,6 +307,34 @@ def hold(ctx: SkillContext, side: str, steps: int, label: str = "hold") -> ArmPl
         np.full(steps + 1, ctx.opening[side]),
         label=label,
     )
+
+
+def plan_both(
+    ctx: SkillContext,
+    plans: dict[str, Callable[[], ArmPlan]],
+    order: Sequence[str] = SIDES,
+) -> tuple[ArmPlan, ArmPlan]:
+    """Plan one part for each arm, to run at the same time (:func:`merge`): returns the
+    (left, right) plans. Each arm's plan is made with the other arm where its own plan ends,
+    so the arm planned second works around the first (a wide hand chooses its grasp or place
+    yaw by the other hand). `order` is tried first; if the second arm then finds no plan, the
+    other order is tried, and if that fails too the first order's error is raised. On failure
+    nothing is changed."""
+    first = list(order)
+    if sorted(first) != sorted(SIDES):
+        raise ValueError(f"order must name both arms, got {order}")
+    errors: list[PlanningError] = []
+    for sides in (first, first[::-1]):
+        out: dict[str, ArmPlan] = {}
+        try:
+            with ctx.transaction():
+                for side in sides:
+                    out[side] = plans[side]()
+        except PlanningError as err:
+            errors.append(err)
+            continue
+        return out["left"], out["right"]
+    raise errors[0]
 
 
 def merge(

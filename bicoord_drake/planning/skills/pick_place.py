@@ -12,13 +12,17 @@ the gripper where it is and backs off.
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
+from dataclasses import replace
 
 import numpy as np
 from pydrake.all import RigidTransform
 
+from bicoord_drake.planning.clearance import HandRoom, roomy_first
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import (
     Grasp,
+    GraspParams,
+    Place,
     arm_base,
     bottom_offset,
     grasp_candidates,
@@ -60,7 +64,9 @@ def pick(
             X_WO=X_WO,
             base=base,
             kinds=kinds,
+            params=hand_params(ctx),
         )
+    grasps = roomy_grasps(ctx, side, name, grasps)
     reasons = []
     for grasp in grasps[:MAX_GRASP_TRIES]:
         try:
@@ -96,6 +102,43 @@ def pick(
         f"{side} cannot pick {name!r}: tried "
         f"{min(len(grasps), MAX_GRASP_TRIES)} grasps ({', '.join(reasons)})",
     )
+
+
+def hand_params(ctx: SkillContext, params: GraspParams | None = None) -> GraspParams:
+    """`params` with the side clearance raised to what the embodiment's hand needs: a
+    horizontal grasp keeps the hand (``ArmSpec.hand_half_height``) the environment clearance
+    above the support."""
+    params = GraspParams() if params is None else params
+    need = round(ctx.model.embodiment.arm.hand_half_height() + ctx.env_clearance, 4)
+    return replace(params, side_clearance=max(params.side_clearance, need))
+
+
+def roomy_grasps(
+    ctx: SkillContext, side: str, name: str, grasps: Sequence[Grasp], ignore: Iterable[str] = ()
+) -> list[Grasp]:
+    """`grasps` (best first) with those whose hand, at the grasp or the pregrasp, comes
+    closer to a neighbour or the other arm than the clearances (:class:`HandRoom`) moved
+    behind the others: a wide hand's tries go to grasps with room first."""
+    room = HandRoom(ctx.model, side, ctx.q, exclude=[name, *ignore])
+    margins = [room.margin((g.X_WG, g.X_WPre), ctx.env_clearance, ctx.clearance) for g in grasps]
+    return roomy_first(list(grasps), margins)
+
+
+def roomy_places(
+    ctx: SkillContext, side: str, cands: Sequence[Place], ignore: Iterable[str] = ()
+) -> list[Place]:
+    """Place candidates (best first) with those whose hand, at the release or above it,
+    comes closer to a neighbour or the other arm than the clearances (:class:`HandRoom`; the
+    release pose itself needs no environment margin, as its IK) moved behind the others."""
+    room = HandRoom(ctx.model, side, ctx.q, exclude=ignore)
+    margins = [
+        min(
+            room.margin((c.X_WG,), 0.0, ctx.clearance),
+            room.margin((c.X_WPre,), ctx.env_clearance, ctx.clearance),
+        )
+        for c in cands
+    ]
+    return roomy_first(list(cands), margins)
 
 
 def _grasp_keyframes(ctx: SkillContext, side: str, name: str, grasp: Grasp, lift: float):
@@ -146,7 +189,7 @@ def place(
     # The model keeps held poses in the gripper link frame; grasps.py works in the TCP frame.
     X_TO = RigidTransform([-ctx.model.embodiment.arm.gripper.tcp_x, 0, 0]) @ held.X_GO
     cands = place_candidates(X_TO, X_WO_goal, shape, base=base, lift=approach_height, yaws=yaws)
-    for cand in cands:
+    for cand in roomy_places(ctx, side, cands, ignore):
         try:
             q_above = solve_tcp(ctx, side, TcpTarget(cand.X_WPre), ignore=ignore)
             q_place = solve_tcp(
@@ -237,7 +280,9 @@ def carry_above(
     base = arm_base(ctx.model.embodiment, side)
     X_TO = RigidTransform([-ctx.model.embodiment.arm.gripper.tcp_x, 0, 0]) @ held.X_GO
     reasons = []
-    for cand in place_candidates(X_TO, X_WO_goal, shape, base=base, lift=height):
+    ignore = list(ignore)
+    cands = place_candidates(X_TO, X_WO_goal, shape, base=base, lift=height)
+    for cand in roomy_places(ctx, side, cands, ignore):
         try:
             q_above = solve_tcp(ctx, side, TcpTarget(cand.X_WPre), ignore=list(ignore))
         except PlanningError as err:
@@ -251,6 +296,27 @@ def carry_above(
         f"{side} cannot hold {held.name!r} {height} m above "
         f"{np.round(X_WO_goal.translation(), 3)} ({', '.join(reasons)})",
     )
+
+
+def carry_margin(
+    ctx: SkillContext,
+    side: str,
+    X_WO_goal: RigidTransform,
+    *,
+    height: float = 0.06,
+    ignore: Iterable[str] = (),
+) -> float:
+    """How much room (m, :class:`HandRoom` margin; negative: too little) the hand of `side`
+    has with its held object `height` above `X_WO_goal`, at the roomiest of the object's
+    symmetric yaws: a cheap way to rank several candidate goals before planning any (no IK)."""
+    held = ctx.model.held.get(side)
+    if held is None:
+        raise PlanningError("gripper_empty", f"{side} holds nothing to carry")
+    shape = ctx.model.object(held.name).shape
+    X_TO = RigidTransform([-ctx.model.embodiment.arm.gripper.tcp_x, 0, 0]) @ held.X_GO
+    room = HandRoom(ctx.model, side, ctx.q, exclude=ignore)
+    cands = place_candidates(X_TO, X_WO_goal, shape, lift=height)
+    return max(room.margin((c.X_WPre,), ctx.env_clearance, ctx.clearance) for c in cands)
 
 
 def _place_moves(

@@ -1,0 +1,87 @@
+"""Room for the hand: the hand's extent comes from the embodiment's data, and grasps whose
+hand would crowd a neighbour are tried last (planning/clearance.py, pick_place.roomy_grasps);
+plan_both plans two arms' parts in either order."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from bicoord_drake.models.embodiment import aloha_viperx
+from bicoord_drake.models.robots import get_embodiment
+from bicoord_drake.models.scene import Scene, cube
+from bicoord_drake.planning.clearance import roomy_first
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.grasps import arm_base, grasp_candidates
+from bicoord_drake.planning.model import PlanningModel
+from bicoord_drake.planning.skills import SkillContext, hold, plan_both
+from bicoord_drake.planning.skills.pick_place import hand_params, roomy_grasps
+
+
+def _extent(boxes) -> tuple[np.ndarray, np.ndarray]:
+    return np.min([lo for lo, _ in boxes], axis=0), np.max([hi for _, hi in boxes], axis=0)
+
+
+def test_hand_boxes_come_from_the_gripper_data():
+    viperx, franka = aloha_viperx().arm, get_embodiment("franka_pair").arm
+    (v_lo, v_hi), (f_lo, f_hi) = _extent(viperx.hand_boxes()), _extent(franka.hand_boxes())
+    # the Franka Hand is 0.2 m along its finger axis y, the ViperX's gripper 0.13 m
+    assert f_hi[1] - f_lo[1] == pytest.approx(0.2)
+    assert v_hi[1] - v_lo[1] == pytest.approx(0.13)
+    # the fingertips reach past the TCP by half a pad, nothing else does
+    for arm, hi in ((viperx, v_hi), (franka, f_hi)):
+        assert hi[0] == pytest.approx(arm.gripper.pad_length / 2)
+    # link 7 (r 0.044) rides on the Panda's hand: a side grasp must keep it off the table
+    assert franka.hand_half_height() == pytest.approx(0.044)
+    assert viperx.hand_half_height() == pytest.approx(0.025)
+
+
+def test_side_clearance_follows_the_hand():
+    ctx = SkillContext(PlanningModel(Scene(), "franka_pair"))
+    assert hand_params(ctx).side_clearance == pytest.approx(0.044 + ctx.env_clearance)
+    viperx = SkillContext(PlanningModel(Scene()))
+    assert hand_params(viperx).side_clearance == 0.03  # as before: the ViperX's plans stay
+
+
+def test_roomy_first_keeps_order_and_moves_crowded_ones_back():
+    assert roomy_first(list("abcd"), [0.1, -0.02, 0.0, -0.01]) == list("acdb")
+
+
+def test_grasps_crowding_a_neighbour_are_tried_last():
+    # a tall neighbour 6 cm from the cube's side along x (its top above the hand's housing)
+    scene = Scene(objects=(cube("a", 0.0, 0.0, 0.04), cube("b", 0.14, 0.0, 0.16)))
+    ctx = SkillContext(PlanningModel(scene, "franka_pair"))
+    gripper = ctx.model.embodiment.arm.gripper
+    base = arm_base(ctx.model.embodiment, "left")
+    grasps = grasp_candidates(
+        ctx.model.object("a"), gripper, base=base, kinds=["top"], params=hand_params(ctx)
+    )
+    ordered = roomy_grasps(ctx, "left", "a", grasps)
+    # the 0.2 m hand must not lie along x (fingers along y first)
+    assert abs(ordered[0].finger_axis[0]) < 0.1 and abs(ordered[1].finger_axis[0]) < 0.1
+    assert abs(ordered[-1].finger_axis[0]) > 0.9
+
+
+def test_plan_both_tries_the_other_order_and_rolls_back():
+    ctx = SkillContext(PlanningModel(Scene()))
+    calls = []
+
+    def left():
+        calls.append("left")
+        return hold(ctx, "left", 2)
+
+    def right():
+        second = calls[-1:] == ["left"]
+        calls.append("right")
+        if second:  # fails only when planned after the left
+            ctx.q = ctx.q + 0.1  # a change the rollback must undo
+            raise PlanningError("ik_collision", "test")
+        return hold(ctx, "right", 3)
+
+    q0 = ctx.q.copy()
+    plans = plan_both(ctx, {"left": left, "right": right})
+    assert calls == ["left", "right", "right", "left"]
+    assert [p.side for p in plans] == ["left", "right"] and plans[1].num_steps == 4
+    assert np.array_equal(ctx.q, q0)
+    with pytest.raises(ValueError):
+        plan_both(ctx, {"left": left, "right": right}, order=("left", "left"))
