@@ -11,7 +11,7 @@ from bicoord_drake.config import StationConfig
 from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.embodiment import aloha_viperx
 from bicoord_drake.models.scene import TABLE_TOP
-from bicoord_drake.planning.grasps import GraspParams, grasp_candidates
+from bicoord_drake.planning.grasps import GraspParams, grasp_candidates, turned_onto
 from bicoord_drake.runner.generate import run_expert
 from bicoord_drake.stages import StageMonitor, WorldState
 from tests.stages.helpers import quat_about
@@ -174,7 +174,7 @@ def test_roller_tool_puts_the_tip_on_the_point_level_along_minus_x():
     X_WT = RigidTransform(RollPitchYaw(math.pi, 0.0, 0.1), [0.25, -0.1, 0.91])
     axis = X_WO.rotation().col(2)
     tool = fb.RollerTool(
-        fb._turned(X_WO.rotation(), -axis, np.array([-1.0, 0.0, 0.0])),
+        turned_onto(X_WO.rotation(), -axis, np.array([-1.0, 0.0, 0.0])),
         np.array([0.0, 0.0, -0.18]),
         X_WO.inverse() @ X_WT,
     )
