@@ -94,6 +94,10 @@ APPROACH = 0.04
 #: Before drawing the roller back, its tip is raised this much (m) off the pushing line.
 RAISE = 0.008
 PUSH_SPEED = 0.35
+#: The left's way to the exit is timed to end this many control steps before the push as
+#: planned ahead from the planned grasp (the real push, planned from the measured grasp, is
+#: up to ~11 steps shorter); the rest is slowed to end with the real push.
+PUSH_MARGIN = 12
 #: Where the right hand lays the roller down again (centre; along x).
 PARK_XY = (0.17, -0.2)
 #: The cube is set on the plate with a slow release (control steps).
@@ -233,7 +237,7 @@ class FetchBlockWithRoller(Task):
         right = pick(ctx, "right", ROLLER, grasps=roller_grasps(ctx), lift=LIFT)
         push_steps = _push_steps(ctx)
         left = move_tcp(ctx, "left", exit_pregrasp(ctx), label="above the exit")
-        left = left.stretched(right.num_steps + push_steps)
+        left = left.stretched(right.num_steps + push_steps - PUSH_MARGIN)
         left, rest = split_at(left, right.num_steps - 1)
         ctx.q = ctx.with_arm("left", left.q[-1])
         yield from run(merge(ctx, left, right))
