@@ -114,10 +114,17 @@ class FetchBlockWithRoller(Task):
     plate, forming a tunnel along x. A 5 cm cube sits inside the tunnel, out of any gripper's
     reach; a wooden roller (a dowel about 36 cm long) lies in front of the shelf on the right.
     The right arm grasps the roller behind its middle, lays it level along the tunnel's axis
-    and pushes the cube with the roller's flat end, slowly, out of the tunnel's left end,
-    while the left arm waits above the exit. Then both arms work at once: the right draws the
-    roller back out of the tunnel, lays it down and retreats, while the left picks the cube
-    and sets it on the middle of the top plate.
+    and pushes the cube with the roller's flat end, slowly, out of the tunnel's left end.
+    Meanwhile the left arm comes to the pregrasp above where the cube will come out (its
+    way there timed to end as the push does) and takes the cube from there, with the grasp
+    its hand is already turned for. Then both arms work at once: the right draws the roller
+    back out of the tunnel, lays it down and retreats, while the left picks the cube and
+    sets it on the middle of the top plate.
+
+    Coordination: the task forces distance in stage 1 (the cube comes out at the tunnel's
+    left end, the roller is pushed from the right end, the right hand ~27 cm behind the
+    roller's tip) and a hand-off in time: the left cannot grasp before the cube is out,
+    nor descend to it while the roller's tip is still within the arms' clearance.
 
     Layout: the reference's walls (15x5x6 cm at y = +-0.05) under a plate ~9 cm high leave
     a 5 cm tunnel for a 5 cm cube and a gap between walls and plate. Here the walls are
