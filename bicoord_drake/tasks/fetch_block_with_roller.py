@@ -36,9 +36,10 @@ from bicoord_drake.planning.skills import (
     pick,
     place,
     retreat,
+    slowed_after,
+    split_at,
     track,
 )
-from bicoord_drake.planning.skills.overlap import slowed_after, split_at
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     all_of,
@@ -340,8 +341,10 @@ def exit_pregrasp(ctx: SkillContext) -> RigidTransform:
 
 def _push_steps(ctx: SkillContext) -> int:
     """Control steps of the push as planned from the grasp just planned (the real push is
-    planned once the grasp is measured); the tracked state is left as it was."""
+    planned once the grasp is measured); the tracked state and the checker's padding are
+    left as they were."""
     q, opening = ctx.q.copy(), dict(ctx.opening)
+    padding = np.array(ctx.model.checker.GetPaddingMatrix(), copy=True)
     try:
         cube_y = float(ctx.model.object_pose(CUBE).translation()[1])
         tool = RollerTool.from_grasp(ctx)
@@ -350,6 +353,7 @@ def _push_steps(ctx: SkillContext) -> int:
         return push_through(ctx, tool, start, end).num_steps
     finally:
         ctx.q, ctx.opening = q, opening
+        ctx.model.checker.SetPaddingMatrix(padding)
 
 
 def nearest_first(ctx: SkillContext, side: str, grasps: list[Grasp]) -> list[Grasp]:

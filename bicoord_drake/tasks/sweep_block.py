@@ -33,9 +33,10 @@ from bicoord_drake.planning.skills import (
     pick,
     pour,
     retreat,
+    slowed_after,
+    split_at,
     track,
 )
-from bicoord_drake.planning.skills.overlap import slowed_after, split_at
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     all_of,

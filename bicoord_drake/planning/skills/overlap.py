@@ -53,9 +53,10 @@ def slowed_after(plan: ArmPlan, start: int, num_steps: int, blend: int = BLEND_S
 
 
 def split_at(plan: ArmPlan, k: int) -> tuple[ArmPlan, ArmPlan]:
-    """`plan` cut at sample `k` (0 < k < its length): samples 0..k and k..end, so that the
-    second starts where the first ends and ``head.then(tail)`` is `plan` again. Events go to
-    the part that contains them (one at `k` to the head)."""
+    """`plan` cut at sample `k`: samples 0..k and k..end, so that the second starts where
+    the first ends and ``head.then(tail)`` is `plan` again. `k` is clipped to 1..end (at the
+    end, the tail is the plan's last sample: nothing left to do). Events go to the part
+    that contains them (one at `k` to the head)."""
     k = max(1, min(int(k), plan.num_steps - 1))
     head = ArmPlan(
         plan.side,
