@@ -25,7 +25,6 @@ from bicoord_drake.planning.grasps import (
     GraspParams,
     arm_base,
     grasp_candidates,
-    gripper_frame,
     turned_onto,
 )
 from bicoord_drake.planning.skills import (
@@ -37,6 +36,8 @@ from bicoord_drake.planning.skills import (
     pick,
     place,
     retreat,
+    slowed_after,
+    split_at,
     track,
 )
 from bicoord_drake.stages import Stage
@@ -94,8 +95,10 @@ APPROACH = 0.04
 #: Before drawing the roller back, its tip is raised this much (m) off the pushing line.
 RAISE = 0.008
 PUSH_SPEED = 0.35
-#: The left hand waits above the exit, this high over the table, until the cube comes out.
-WAIT_X, WAIT_Z = -0.21, 0.16
+#: The left's way to the exit is timed to end this many control steps before the push as
+#: planned ahead from the planned grasp (the real push, planned from the measured grasp, is
+#: up to ~11 steps shorter); the rest is slowed to end with the real push.
+PUSH_MARGIN = 12
 #: Where the right hand lays the roller down again (centre; along x).
 PARK_XY = (0.17, -0.2)
 #: The cube is set on the plate with a slow release (control steps).
@@ -112,10 +115,17 @@ class FetchBlockWithRoller(Task):
     plate, forming a tunnel along x. A 5 cm cube sits inside the tunnel, out of any gripper's
     reach; a wooden roller (a dowel about 36 cm long) lies in front of the shelf on the right.
     The right arm grasps the roller behind its middle, lays it level along the tunnel's axis
-    and pushes the cube with the roller's flat end, slowly, out of the tunnel's left end,
-    while the left arm waits above the exit. Then both arms work at once: the right draws the
-    roller back out of the tunnel, lays it down and retreats, while the left picks the cube
-    and sets it on the middle of the top plate.
+    and pushes the cube with the roller's flat end, slowly, out of the tunnel's left end.
+    Meanwhile the left arm comes to the pregrasp above where the cube will come out (its
+    way there timed to end as the push does) and takes the cube from there, with the grasp
+    its hand is already turned for. Then both arms work at once: the right draws the roller
+    back out of the tunnel, lays it down and retreats, while the left picks the cube and
+    sets it on the middle of the top plate.
+
+    Coordination: the task forces distance in stage 1 (the cube comes out at the tunnel's
+    left end, the roller is pushed from the right end, the right hand ~27 cm behind the
+    roller's tip) and a hand-off in time: the left cannot grasp before the cube is out,
+    nor descend to it while the roller's tip is still within the arms' clearance.
 
     Layout: the reference's walls (15x5x6 cm at y = +-0.05) under a plate ~9 cm high leave
     a 5 cm tunnel for a 5 cm cube and a gap between walls and plate. Here the walls are
@@ -230,28 +240,30 @@ class FetchBlockWithRoller(Task):
 
         run = partial(follow, ctx, view)
 
-        cube_y = float(ctx.model.object_pose(CUBE).translation()[1])
-        # ---- stage 1: right grasps the roller, left goes to wait above the exit
+        # ---- stage 1: right grasps the roller and pushes the cube out; meanwhile the left
+        # comes to the pregrasp above where the cube comes out, timed to arrive as it does
         right = pick(ctx, "right", ROLLER, grasps=roller_grasps(ctx), lift=LIFT)
-        wait = gripper_frame(
-            np.array([0.0, 0.0, -1.0]),
-            np.array([0.0, 1.0, 0.0]),
-            np.array([WAIT_X, cube_y, TABLE_TOP + WAIT_Z]),
-        )
-        left = move_tcp(ctx, "left", wait, label="wait above the exit")
+        push_steps = _push_steps(ctx)
+        left = move_tcp(ctx, "left", exit_pregrasp(ctx), label="above the exit")
+        left = left.stretched(right.num_steps + push_steps - PUSH_MARGIN)
+        left, rest = split_at(left, right.num_steps - 1)
+        ctx.q = ctx.with_arm("left", left.q[-1])
         yield from run(merge(ctx, left, right))
-        # right lays the roller along the tunnel and pushes the cube out; left keeps waiting
+        # right lays the roller along the tunnel and pushes the cube out; the left comes on
         cube_y = float(ctx.model.object_pose(CUBE).translation()[1])
         tool = RollerTool.from_grasp(ctx)
         start = np.array([START_X, cube_y, TABLE_TOP + PUSH_Z])
         end = np.array([END_X, cube_y, TABLE_TOP + PUSH_Z])
-        yield from run(merge(ctx, None, push_through(ctx, tool, start, end), ignore=[CUBE]))
+        push = push_through(ctx, tool, start, end)
+        rest = slowed_after(rest, 0, push.num_steps)
+        ctx.q = ctx.with_arm("left", rest.q[-1])
+        yield from run(merge(ctx, rest, push, stretch=False, ignore=[CUBE]))
         # ---- stage 2: right draws the roller back out and lays it down, left picks the cube
         # and sets it on the plate (the arm leaving is planned first)
         right = withdraw(ctx, START_X).then(lay_down(ctx, tool), retreat(ctx, "right"))
         top = TABLE_TOP + SHELF_DIMS.top + CUBE_EDGE / 2
         goal = RigidTransform([SHELF_XY[0], SHELF_XY[1], top + 0.001])
-        left = pick(ctx, "left", CUBE, grasps=cube_grasps(ctx)).then(
+        left = pick(ctx, "left", CUBE, grasps=nearest_first(ctx, "left", cube_grasps(ctx))).then(
             place(ctx, "left", goal, release_steps=RELEASE_STEPS),
             retreat(ctx, "left"),
         )
@@ -311,6 +323,49 @@ def cube_grasps(ctx: SkillContext) -> list[Grasp]:
     if not across_y:
         raise PlanningError("no_grasp", "no top grasp of the cube with the fingers across y")
     return across_y
+
+
+def exit_pregrasp(ctx: SkillContext) -> RigidTransform:
+    """The left's pregrasp of the cube where the push will leave it (its centre half an edge
+    beyond the roller's last tip position, END_X): the grasp it will take, planned for that
+    pose (the cube is put back where it is)."""
+    X_now = ctx.model.object_pose(CUBE)
+    p = X_now.translation()
+    X_out = RigidTransform(X_now.rotation(), [END_X - CUBE_EDGE / 2, p[1], p[2]])
+    ctx.model.set_object_pose(CUBE, X_out)
+    try:
+        return cube_grasps(ctx)[0].X_WPre
+    finally:
+        ctx.model.set_object_pose(CUBE, X_now)
+
+
+def _push_steps(ctx: SkillContext) -> int:
+    """Control steps of the push as planned from the grasp just planned (the real push is
+    planned once the grasp is measured); the tracked state and the checker's padding are
+    left as they were."""
+    q, opening = ctx.q.copy(), dict(ctx.opening)
+    padding = np.array(ctx.model.checker.GetPaddingMatrix(), copy=True)
+    try:
+        cube_y = float(ctx.model.object_pose(CUBE).translation()[1])
+        tool = RollerTool.from_grasp(ctx)
+        start = np.array([START_X, cube_y, TABLE_TOP + PUSH_Z])
+        end = np.array([END_X, cube_y, TABLE_TOP + PUSH_Z])
+        return push_through(ctx, tool, start, end).num_steps
+    finally:
+        ctx.q, ctx.opening = q, opening
+        ctx.model.checker.SetPaddingMatrix(padding)
+
+
+def nearest_first(ctx: SkillContext, side: str, grasps: list[Grasp]) -> list[Grasp]:
+    """`grasps` ordered by how far the hand of `side` must turn to take them (the left waits
+    above the exit turned for the grasp it expected; the pushed cube may have turned so that
+    the other finger direction comes first, which would turn the wrist over in place)."""
+    R_now = ctx.model.tcp_pose(ctx.q, side).rotation()
+
+    def turn(g: Grasp) -> float:
+        return float(AngleAxis((R_now.inverse() @ g.X_WG.rotation()).ToQuaternion()).angle())
+
+    return sorted(grasps, key=turn)
 
 
 class RollerTool:

@@ -33,6 +33,8 @@ from bicoord_drake.planning.skills import (
     pick,
     pour,
     retreat,
+    slowed_after,
+    split_at,
     track,
 )
 from bicoord_drake.stages import Stage
@@ -124,6 +126,10 @@ TOOL_CLEARANCE = 0.004
 #: edge LIP_IN short of the bin's centre and its floor RAISE above the rim, tipped by
 #: TIP_ANGLE about that edge.
 LIP_IN, RAISE, TIP_ANGLE = 0.01, 0.04, math.radians(65)
+#: The right's way home is timed to end this many control steps before the tip as planned
+#: ahead (the real tip, planned from the measured grasp, may come out shorter); the rest is
+#: slowed to end with the real tip.
+TIP_MARGIN = 6
 #: Control steps both arms hold still at the end (the cube must be seen at rest 0.3 s).
 SETTLE_STEPS = 10
 
@@ -144,7 +150,14 @@ class SweepBlock(Task):
     the top, off the edge, into the pan. Then the right lifts the brush away and goes back
     while the left carries the pan to the bin, turning it half around on the way so its
     mouth faces the bin, and tips it forward about its front edge (held over the bin) until
-    the cube slides out into the bin.
+    the cube slides out into the bin; the right's way back, once the brush is off the pan,
+    takes as long as the carry and the tip (it ends as the pan is tilted back).
+
+    Coordination: both arms work throughout (each holds its tool from its pick on), but the
+    layout keeps them apart in stages 1 and 3: the tools lie at the table's two ends (the
+    picks are farther apart than the arms' home), and the bin stands at the left end, where
+    only the left can empty the pan (the right has nothing to do there: the task has it
+    hold still). They come close only at the pedestal (stage 2).
 
     Layout: the reference's bin stands on the floor beside the table on the left, out of
     reach of our ViperX arms (0.75 m below their bases); here it is a low bin (14x14x7 cm)
@@ -324,11 +337,22 @@ class SweepBlock(Task):
         # ---- stage 3: the right lifts the brush away, the left empties the pan into the bin
         # (the cube rides in the pan: the planning model, which does not carry it, leaves it
         # out; the pan itself is checked)
+        # The right's way home, once the brush is off the pan, is slowed to end with the
+        # left's last action, the tip (planned ahead from the planned carry; the real tip is
+        # planned once the carry is done, and the rest of the way home is timed to it).
         with ctx.model.ignoring([CUBE]):
-            right = brush_up(ctx).then(retreat(ctx, "right"))
+            up = brush_up(ctx)
+            right = up.then(retreat(ctx, "right"))
             left = to_bin(ctx)
-            yield from run(merge(ctx, left, right, ignore=[CUBE]))
-            yield from run(merge(ctx, tip(ctx), None, ignore=[CUBE]))
+            tip_steps = _tip_steps(ctx)
+            right = slowed_after(right, up.num_steps - 1, left.num_steps + tip_steps - TIP_MARGIN)
+            right, rest = split_at(right, left.num_steps - 1)
+            ctx.q = ctx.with_arm("right", right.q[-1])
+            yield from run(merge(ctx, left, right, stretch=False, ignore=[CUBE]))
+            pan = tip(ctx)
+            rest = slowed_after(rest, 0, pan.num_steps)
+            ctx.q = ctx.with_arm("right", rest.q[-1])
+            yield from run(merge(ctx, pan, rest, stretch=False, ignore=[CUBE]))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
@@ -483,3 +507,16 @@ def tip(ctx: SkillContext) -> ArmPlan:
         hold_steps=12,
         ignore=[CUBE],
     )
+
+
+def _tip_steps(ctx: SkillContext) -> int:
+    """Control steps of the tip as planned from the state planned so far (the real tip is
+    planned once the pan is over the bin); the tracked state and the checker's padding are
+    left as they were."""
+    q, opening = ctx.q.copy(), dict(ctx.opening)
+    padding = np.array(ctx.model.checker.GetPaddingMatrix(), copy=True)
+    try:
+        return tip(ctx).num_steps
+    finally:
+        ctx.q, ctx.opening = q, opening
+        ctx.model.checker.SetPaddingMatrix(padding)

@@ -17,6 +17,7 @@ from bicoord_drake.planning.skills import (
     move_tcp,
     retreat,
     slowed_after,
+    split_at,
 )
 
 RADIUS = 0.12
@@ -82,3 +83,21 @@ def test_leave_as_arrives_times_the_arrival_and_ends_the_leave_with_it():
     np.testing.assert_array_equal(motion.q[-1, right], leave.q[-1])
     with pytest.raises(ValueError, match="both the right arm"):
         leave_as_arrives(ctx, leave, leave, ct.BIN_XY, RADIUS)
+
+
+def test_split_at_cuts_a_plan_into_two_that_chain_back_to_it():
+    plan = _plan()
+    head, tail = split_at(plan, 12)
+    assert head.num_steps == 13 and tail.num_steps == 18
+    np.testing.assert_array_equal(tail.q[0], head.q[-1])  # the tail starts where the head ends
+    again = head.then(tail)
+    np.testing.assert_array_equal(again.q, plan.q)
+    np.testing.assert_array_equal(again.opening, plan.opening)
+    assert head.events == [] and tail.events == [(8, "detach", "cube")]
+    assert again.events == plan.events
+    # a cut before the first step moves to it; one at or past the end leaves the whole plan
+    # as the head and its last sample as the tail
+    assert split_at(plan, 0)[0].num_steps == 2
+    head, tail = split_at(plan, 99)
+    assert head.num_steps == 30 and tail.num_steps == 1
+    np.testing.assert_array_equal(tail.q[0], plan.q[-1])

@@ -40,7 +40,7 @@ module                    skills
                           drawer's slide axis; the model's drawer follows),
                           :func:`let_go_handle`
 :mod:`.overlap`           :func:`leave_as_arrives` (the leaving arm's way back timed to end
-                          with the arriving arm's work), :func:`slowed_after`
+                          with the arriving arm's work), :func:`slowed_after`, :func:`split_at`
 :mod:`.turns`             :func:`arrive_as_leaves` (turn-taking at a shared spot: one arm
                           arrives as the other leaves), :func:`take_turn` (the same with
                           fallbacks when the arms conflict), :func:`arrival_delay`,
@@ -93,7 +93,7 @@ from bicoord_drake.planning.skills.handover import (
     handover,
     meet_motion,
 )
-from bicoord_drake.planning.skills.overlap import leave_as_arrives, slowed_after
+from bicoord_drake.planning.skills.overlap import leave_as_arrives, slowed_after, split_at
 from bicoord_drake.planning.skills.pick_place import (
     carry_above,
     drop_into,
@@ -154,6 +154,7 @@ __all__ = [
     "retreat",
     "solve_tcp",
     "slowed_after",
+    "split_at",
     "stabilize",
     "take_turn",
     "tcp_deviation",

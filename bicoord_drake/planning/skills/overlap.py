@@ -52,6 +52,29 @@ def slowed_after(plan: ArmPlan, start: int, num_steps: int, blend: int = BLEND_S
     return ArmPlan(plan.side, q, opening, events, plan.label)
 
 
+def split_at(plan: ArmPlan, k: int) -> tuple[ArmPlan, ArmPlan]:
+    """`plan` cut at sample `k`: samples 0..k and k..end, so that the second starts where
+    the first ends and ``head.then(tail)`` is `plan` again. `k` is clipped to 1..end (at the
+    end, the tail is the plan's last sample: nothing left to do). Events go to the part
+    that contains them (one at `k` to the head)."""
+    k = max(1, min(int(k), plan.num_steps - 1))
+    head = ArmPlan(
+        plan.side,
+        plan.q[: k + 1],
+        plan.opening[: k + 1],
+        [e for e in plan.events if e[0] <= k],
+        plan.label,
+    )
+    tail = ArmPlan(
+        plan.side,
+        plan.q[k:],
+        plan.opening[k:],
+        [(i - k, kind, name) for i, kind, name in plan.events if i > k],
+        plan.label,
+    )
+    return head, tail
+
+
 def leave_as_arrives(
     ctx: SkillContext,
     leaver: ArmPlan,
