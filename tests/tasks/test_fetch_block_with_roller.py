@@ -170,8 +170,6 @@ def test_the_roller_is_grasped_behind_its_middle(scene):
 def test_roller_tool_puts_the_tip_on_the_point_level_along_minus_x():
     from pydrake.all import RigidTransform, RollPitchYaw
 
-    from bicoord_drake.planning.grasps import turned_onto
-
     X_WO = RigidTransform(RollPitchYaw(0.3, math.pi / 2, 0.2), [0.2, -0.1, 0.9])
     X_WT = RigidTransform(RollPitchYaw(math.pi, 0.0, 0.1), [0.25, -0.1, 0.91])
     axis = X_WO.rotation().col(2)
