@@ -134,19 +134,26 @@ def run(command: list[str], log: Path) -> tuple[str, float]:
 
 
 # --------------------------------------------------------------------------- one task
-def export_command(files: list[Path], dataset: Path) -> list[str]:
-    """scripts/export.py for a state-based dataset of `files`."""
-    return [
-        sys.executable,
-        "scripts/export.py",
-        *map(str, files),
-        "--to",
-        "lerobot",
-        "--out",
-        str(dataset),
-        "--environment-state",
-        "--no-images",
-    ]
+def export_command(
+    files: list[Path], dataset: Path, inputs: str, source: Path | None = None
+) -> list[str]:
+    """scripts/export.py for a dataset of `files` with the policy's `inputs`: ``state`` (the
+    robot's state and the task objects' poses, no images) or ``images`` (the robot's state and
+    the cameras). `source`: a directory whose first ``len(files)`` episodes are `files`
+    (exported with ``--max-episodes``, a shorter command)."""
+    paths = [str(source), "--max-episodes", str(len(files))] if source else list(map(str, files))
+    options = ["--environment-state", "--no-images"] if inputs == "state" else []
+    command = [sys.executable, "scripts/export.py", *paths, "--to", "lerobot"]
+    return [*command, "--out", str(dataset), *options]
+
+
+def common_source(files: list[Path]) -> Path | None:
+    """The deepest directory whose episode files start with `files`, in order (None if none)."""
+    from bicoord_drake.data.readers import find_episode_files
+
+    parent = Path(os.path.commonpath([f.parent for f in files]))
+    found, _ = find_episode_files([parent])
+    return parent if found[: len(files)] == files else None
 
 
 def train_command(
@@ -172,7 +179,7 @@ def train_command(
 
 
 def evaluate_command(task: str, checkpoint: Path, out: Path, args: argparse.Namespace) -> list[str]:
-    """scripts/evaluate.py on unseen-split evaluation seeds, states only."""
+    """scripts/evaluate.py on unseen-split evaluation seeds (cameras only for image inputs)."""
     return [
         sys.executable,
         "scripts/evaluate.py",
@@ -186,7 +193,7 @@ def evaluate_command(task: str, checkpoint: Path, out: Path, args: argparse.Name
         str(args.eval_seed),
         "--split",
         "unseen",
-        "--no-render",
+        *(["--no-render"] if args.inputs == "state" else ["--resolution", args.resolution]),
         "--workers",
         str(args.eval_workers),
         "--json",
@@ -208,9 +215,9 @@ def demonstrations(data: Path, task: str, count: int) -> list[Path]:
 def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) -> list[dict]:
     """Export, train and evaluate every policy of `args` on `task`; returns the new results."""
     work = Path(args.work) / task
-    dataset = work / f"dataset_{args.demos}"
+    dataset = work / f"dataset_{args.inputs}_{args.demos}"
     files = demonstrations(Path(args.data), task, args.demos)
-    export = export_command(files, dataset)
+    export = export_command(files, dataset, args.inputs, common_source(files))
     todo = [p for p in args.policies if (task, p) not in done]
     if not todo:
         return []
@@ -219,23 +226,26 @@ def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) ->
         run(export, work / "logs" / "export.log")
     results = []
     for policy in todo:
-        output = work / f"{policy}_{args.demos}demos_{args.steps}steps"
+        output = work / f"{policy}_{args.inputs}_{args.demos}demos_{args.steps}steps"
         if output.exists():
             shutil.rmtree(output)  # lerobot-train refuses an existing directory
         train = train_command(policy, task, dataset, output, args)
         print(f"[{task}] train {policy}: {args.steps} steps", flush=True)
-        _, train_seconds = run(train, work / "logs" / f"train_{policy}.log")
-        log = (work / "logs" / f"train_{policy}.log").read_text()
+        train_log = work / "logs" / f"train_{output.name}.log"
+        _, train_seconds = run(train, train_log)
+        log = train_log.read_text()
         losses = _LOSS.findall(log)
         evaluate = evaluate_command(task, output, work / "eval", args)
         print(f"[{task}] evaluate {policy}: {args.eval_episodes} rollouts", flush=True)
-        stdout, eval_seconds = run(evaluate, work / "logs" / f"evaluate_{policy}.log")
+        stdout, eval_seconds = run(evaluate, work / "logs" / f"evaluate_{output.name}.log")
         report = json.loads(stdout)
         errors = [r["error"] for r in report["rollouts"] if r.get("error")]
         results.append(
             {
                 "task": task,
                 "policy": policy,
+                "inputs": args.inputs,
+                **({"resolution": args.resolution} if args.inputs == "images" else {}),
                 "demos": len(files),
                 "steps": args.steps,
                 "batch_size": args.batch_size,
@@ -270,24 +280,33 @@ def _pct(value: float | None) -> str:
     return "-" if value is None else f"{100 * value:.1f}"
 
 
+def inputs_text(result: dict[str, Any]) -> str:
+    """What the policy saw: state (robot + task objects) or the cameras at a resolution."""
+    if result.get("inputs", "state") == "state":
+        return "state"
+    return f"images {result.get('resolution', '?')} + robot state"
+
+
 def markdown(results: list[dict[str, Any]], command: str) -> str:
     """The baselines table, its settings and the exact commands of every row."""
     lines = [
         "# Baselines: ACT and Diffusion Policy trained with lerobot-train",
         "",
         f"Written by `{command}` from `results.jsonl` of its work directory.",
-        "State-based (inputs `observation.state` and `observation.environment_state`, the task "
-        "objects' poses; no images), trained on the CPU with `lerobot-train` (lerobot's "
-        "default configuration of each policy plus the arguments in the commands below), "
+        "Inputs: *state* = `observation.state` and `observation.environment_state` (the task "
+        "objects' poses; no images); *images* = `observation.state` and the three cameras at "
+        "the generated resolution (the evaluation renders at that resolution). Trained on the "
+        "CPU with `lerobot-train` (lerobot's default configuration of each policy plus the "
+        "arguments in the commands below), "
         "scored with `scripts/evaluate.py` on unseen-split evaluation seeds (from 100000 up; "
         "seeds whose expert fails are skipped). SR, SSR in percent; TL in control steps of the "
         "successful rollouts; per-stage completion: the share of rollouts in which each stage "
         "counted. Paper DP: the paper's single-task Diffusion Policy (image-based, GPU, "
         "RoboTwin 2.0 settings, 100 rollouts), for reference only: the inputs differ.",
         "",
-        "| task | policy | demos | train steps | train time | final loss | rollouts | SR | SSR "
-        "| TL | per-stage completion | paper DP SR / SSR | machine | date |",
-        "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---|---|",
+        "| task | policy | inputs | demos | train steps | train time | final loss | rollouts | SR "
+        "| SSR | TL | per-stage completion | paper DP SR / SSR | machine | date |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---|---|",
     ]
     for r in results:
         stages = "; ".join(f"{name} {_pct(c)}" for name, c in r["stages"])
@@ -295,14 +314,15 @@ def markdown(results: list[dict[str, Any]], command: str) -> str:
         paper_text = f"{paper[0]:.1f} / {paper[1]:.1f}" if paper else "-"
         loss = "-" if r["final_loss"] is None else f"{r['final_loss']:.3f}"
         lines.append(
-            f"| {r['task']} | {r['policy']} | {r['demos']} | {r['steps']} | "
+            f"| {r['task']} | {r['policy']} | {inputs_text(r)} | {r['demos']} | {r['steps']} | "
             f"{r['train_seconds'] / 60:.1f} min | {loss} | {r['n']} | {_pct(r['SR'])} | "
             f"{_pct(r['SSR'])} | {r['TL'] if r['TL'] is not None else '-'} | {stages} | "
             f"{paper_text} | {r['machine']} | {r['date']} |"
         )
     lines += ["", "## Commands", ""]
     for r in results:
-        lines += [f"### {r['task']}, {r['policy']}", "", "```bash"]
+        lines += [f"### {r['task']}, {r['policy']} ({inputs_text(r)}), {r['steps']} steps", ""]
+        lines += ["```bash"]
         lines += [r["commands"][k] for k in ("export", "train", "evaluate")]
         lines += ["```", ""]
         if r["errors"]:
@@ -328,6 +348,18 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--demos", type=int, default=50, help="demonstrations per task")
     parser.add_argument(
         "--policies", default="act,diffusion", help=f"comma list of {', '.join(POLICIES)}"
+    )
+    parser.add_argument(
+        "--inputs",
+        choices=("state", "images"),
+        default="state",
+        help="state: robot + task objects' poses, no cameras (default); images: robot state + "
+        "the cameras (episodes generated with cameras at --resolution)",
+    )
+    parser.add_argument(
+        "--resolution",
+        default="128x96",
+        help="camera WIDTHxHEIGHT of the generated episodes and the evaluation (--inputs images)",
     )
     parser.add_argument("--steps", type=int, default=20000, help="training steps")
     parser.add_argument("--batch-size", type=int, default=8, help="training batch size")
@@ -371,15 +403,20 @@ def main(argv: list[str] | None = None) -> int:
     results_file = Path(args.work) / "results.jsonl"
     results_file.parent.mkdir(parents=True, exist_ok=True)
     previous = [] if args.force else read_results(results_file)
-    key = (args.demos, args.steps)
-    done = {(r["task"], r["policy"]) for r in previous if (r["demos"], r["steps"]) == key}
+    key = (args.inputs, args.demos, args.steps)
+    done = {
+        (r["task"], r["policy"])
+        for r in previous
+        if (r.get("inputs", "state"), r["demos"], r["steps"]) == key
+    }
     for task in args.tasks:
         for result in run_task(task, args, done):
             with open(results_file, "a", encoding="utf-8") as fh:
                 fh.write(json.dumps(result) + "\n")
     command = "python benchmarks/baselines.py " + shlex.join(sys.argv[1:] if argv is None else argv)
     latest = {
-        (r["task"], r["policy"], r["demos"], r["steps"]): r for r in read_results(results_file)
+        (r["task"], r["policy"], r.get("inputs", "state"), r["demos"], r["steps"]): r
+        for r in read_results(results_file)
     }
     Path(args.out).write_text(markdown(list(latest.values()), command) + "\n")
     print(f"wrote {args.out}")

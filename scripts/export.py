@@ -6,6 +6,7 @@ Examples:
     python scripts/export.py data/jigsaw --to lerobot --out lr21 --codebase v2.1
     python scripts/export.py data --to lerobot --out lr --dtype float64 --check
     python scripts/export.py data --to lerobot --out lr_state --environment-state --no-images
+    python scripts/export.py data/jigsaw --to lerobot --out lr50 --max-episodes 50  # first 50
 
 DATA_DIR holds episode files (searched recursively for *.hdf5), e.g. the --out of
 scripts/generate.py, all of one robot. Features: observation.state and action (the robot's
@@ -60,6 +61,13 @@ def main(argv: list[str] | None = None) -> int:
         help="leave the camera videos out (a state-only dataset)",
     )
     parser.add_argument(
+        "--max-episodes",
+        type=int,
+        metavar="N",
+        help="export only the first N episode files (natural order: the first N seeds of a "
+        "generate.py directory); fewer is an error",
+    )
+    parser.add_argument(
         "--check", action="store_true", help="load the export with lerobot and compare"
     )
     args = parser.parse_args(argv)
@@ -82,6 +90,7 @@ def main(argv: list[str] | None = None) -> int:
             vcodec=args.vcodec,
             images=args.images,
             environment_state=args.environment_state,
+            max_episodes=args.max_episodes,
         )
     except (ImportError, FileExistsError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)

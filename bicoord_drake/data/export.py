@@ -256,13 +256,24 @@ def _integer_fps(episode: Episode) -> int:
 
 
 def load_episodes(
-    paths: Iterable[str | Path], *, images: bool = True, environment_state: bool = False
+    paths: Iterable[str | Path],
+    *,
+    images: bool = True,
+    environment_state: bool = False,
+    max_episodes: int | None = None,
 ) -> list[Episode]:
-    """Read every episode file under ``paths`` and check they can share one dataset (with
-    `images`, the export's cameras; with `environment_state`, its task objects)."""
+    """Read every episode file under ``paths`` (only the first `max_episodes` in natural order,
+    if given) and check they can share one dataset (with `images`, the export's cameras; with
+    `environment_state`, its task objects)."""
     files, errors = find_episode_files(paths)
     if errors:
         raise ValueError("; ".join(errors))
+    if max_episodes is not None:
+        if max_episodes < 1:
+            raise ValueError(f"max_episodes must be at least 1, got {max_episodes}")
+        if len(files) < max_episodes:
+            raise ValueError(f"{max_episodes} episodes asked for, {len(files)} found")
+        files = files[:max_episodes]
     episodes = [read_episode(f, images=images) for f in files]
     if not episodes:
         raise ValueError("no episode files to export")
@@ -309,14 +320,17 @@ def export_lerobot(
     vcodec: str = "libsvtav1",
     images: bool = True,
     environment_state: bool = False,
+    max_episodes: int | None = None,
 ) -> ExportResult:
     """Export the episodes under ``paths`` into a new LeRobot dataset directory ``out``.
 
     ``dtype`` float64 keeps the stored states, actions and poses bit-exact; lerobot hands
     items out as float32 either way (what policies read). ``images=False`` leaves the cameras
     out (a state-only dataset; episodes generated without rendering need it);
-    ``environment_state`` adds ``observation.environment_state``, the task objects' poses.
-    Raises ``FileExistsError`` if ``out`` exists, ``ValueError`` on bad input.
+    ``environment_state`` adds ``observation.environment_state``, the task objects' poses;
+    ``max_episodes`` exports only the first that many episode files (natural order: the first
+    seeds of a generated directory). Raises ``FileExistsError`` if ``out`` exists,
+    ``ValueError`` on bad input.
     """
     if codebase not in CODEBASES:
         raise ValueError(f"unknown codebase {codebase!r}; choose one of {', '.join(CODEBASES)}")
@@ -326,7 +340,9 @@ def export_lerobot(
     if out.exists():
         raise FileExistsError(f"{out} exists; remove it or choose another output directory")
     require_lerobot()
-    episodes = load_episodes(paths, images=images, environment_state=environment_state)
+    episodes = load_episodes(
+        paths, images=images, environment_state=environment_state, max_episodes=max_episodes
+    )
     features = lerobot_features(
         episodes[0], dtype, images=images, environment_state=environment_state
     )

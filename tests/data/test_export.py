@@ -162,3 +162,12 @@ def test_environment_state_in_v21_and_the_cli(source, tmp_path, capsys):
     info = json.loads((out / "meta/info.json").read_text())
     assert info["features"]["observation.environment_state"]["shape"] == [28]
     assert info["total_videos"] == 0
+
+
+def test_max_episodes_takes_the_first_files_in_seed_order(tmp_path):
+    lengths = tuple(range(3, 14))  # 11 episodes: episode10 comes after episode9
+    source = make_dataset(tmp_path / "src", lengths=lengths)
+    first = export.load_episodes([source], images=False, max_episodes=10)
+    assert [len(e.joint_action) for e in first] == list(lengths[:10])
+    with pytest.raises(ValueError, match="12 episodes asked for, 11 found"):
+        export.load_episodes([source], images=False, max_episodes=12)

@@ -19,8 +19,9 @@ def test_commands_are_state_based_and_carry_the_extra_arguments(baselines, tmp_p
         + ["--steps", "100", "--train-args", "diffusion=--policy.horizon=8"]
     )
     assert args.tasks == ["jigsaw", "cook"] and args.policies == ["act", "diffusion"]
-    export = baselines.export_command([tmp_path / "e0.hdf5"], tmp_path / "ds")
+    export = baselines.export_command([tmp_path / "e0.hdf5"], tmp_path / "ds", args.inputs)
     assert export[-2:] == ["--environment-state", "--no-images"]
+    assert str(tmp_path / "e0.hdf5") in export
     train = baselines.train_command("diffusion", "jigsaw", tmp_path / "ds", tmp_path / "out", args)
     assert "--policy.type=diffusion" in train and "--policy.horizon=8" in train
     assert "--steps=100" in train and "--policy.device=cpu" in train
@@ -30,11 +31,32 @@ def test_commands_are_state_based_and_carry_the_extra_arguments(baselines, tmp_p
     evaluate = baselines.evaluate_command("jigsaw", tmp_path / "out", tmp_path / "ev", args)
     assert ["--split", "unseen"] == evaluate[evaluate.index("--split") :][:2]
     assert "--no-render" in evaluate and f"lerobot:{tmp_path / 'out'}" in evaluate
+    images = baselines.parse_args(
+        ["--data", "d", "--tasks", "jigsaw", "--work", "w", "--out", "o.md"]
+        + ["--inputs", "images", "--resolution", "96x72"]
+    )
+    export = baselines.export_command([tmp_path / "e0.hdf5"], tmp_path / "ds", images.inputs)
+    assert "--no-images" not in export and "--environment-state" not in export
+    evaluate = baselines.evaluate_command("jigsaw", tmp_path / "out", tmp_path / "ev", images)
+    assert "--no-render" not in evaluate
+    assert evaluate[evaluate.index("--resolution") + 1] == "96x72"
     assert baselines.shown([sys.executable, "x"]) == "python x"
     with pytest.raises(SystemExit):
         baselines.parse_args(
             ["--data", "d", "--tasks", "t", "--work", "w", "--out", "o"] + ["--policies", "pi0"]
         )
+
+
+def test_export_names_the_source_directory_when_the_demos_are_its_first_files(baselines, tmp_path):
+    from tests.data.synthetic import make_dataset
+
+    make_dataset(tmp_path, lengths=(3,) * 11)
+    files = sorted((tmp_path / "demo_task").rglob("*.hdf5"), key=lambda p: int(p.stem[7:]))
+    source = baselines.common_source(files[:10])
+    assert source is not None and files[0].is_relative_to(source)
+    export = baselines.export_command(files[:10], tmp_path / "ds", "state", source)
+    assert export[2:5] == [str(source), "--max-episodes", "10"]
+    assert baselines.common_source([files[0], files[2]]) is None  # not a prefix: list them
 
 
 def test_table_rows(baselines):
@@ -58,9 +80,10 @@ def test_table_rows(baselines):
     text = baselines.markdown([result], "python benchmarks/baselines.py ...")
     row = next(line for line in text.splitlines() if line.startswith("| balance_roller"))
     cells = [c.strip() for c in row.strip("|").split("|")]
-    assert cells[:12] == [
+    assert cells[:13] == [
         "balance_roller",
         "act",
+        "state",
         "50",
         "1000",
         "10.0 min",
