@@ -132,27 +132,22 @@ def test_only_package_changes_make_a_measurement_dirty(es, tmp_path):
     assert es.code_changed(first, third, tmp_path)
 
 
-def test_randomize_measures_randomized_scenes_in_their_own_section(es, tmp_path, monkeypatch):
-    from bicoord_drake.runner import generate as gen
-
-    seen = {}
-
-    def fake_generate(config):
-        seen["config"] = config
-        return summary(kept=3, tried=3, mean_length=100.0)
-
-    monkeypatch.setattr(gen, "generate", fake_generate)
-    monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
-    out = tmp_path / "success.md"
-    assert es.main(["--tasks", "jigsaw", "--seeds", "0-2", "--randomize", "--out", str(out)]) == 0
-    assert seen["config"].randomize and not seen["config"].render
-    assert es.main(["--tasks", "jigsaw", "--seeds", "0-2", "--out", str(out)]) == 0
-    assert not seen["config"].randomize
-    text = out.read_text()
-    assert text.count("## jigsaw (randomized)") == 1 and text.count("## jigsaw\n") == 1
-
-
-def test_embodiment_measures_another_robot_in_its_own_section(es, tmp_path, monkeypatch):
+@pytest.mark.parametrize(
+    ("option", "section", "applied"),
+    [
+        (["--randomize"], "jigsaw (randomized)", lambda config: config.randomize),
+        (
+            ["--embodiment", "franka_pair"],
+            "jigsaw (franka_pair)",
+            lambda config: config.embodiment == "franka_pair",
+        ),
+    ],
+)
+def test_a_variant_is_measured_in_its_own_section(
+    es, tmp_path, monkeypatch, option, section, applied
+):
+    """--randomize and --embodiment reach the generator and get a section beside the plain
+    one; the plain run does not inherit them."""
     from bicoord_drake.runner import generate as gen
 
     seen = {}
@@ -165,12 +160,12 @@ def test_embodiment_measures_another_robot_in_its_own_section(es, tmp_path, monk
     monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
     out = tmp_path / "success.md"
     argv = ["--tasks", "jigsaw", "--seeds", "0-2", "--out", str(out)]
-    assert es.main([*argv, "--embodiment", "franka_pair"]) == 0
-    assert seen["config"].embodiment == "franka_pair"
+    assert es.main([*argv, *option]) == 0
+    assert applied(seen["config"]) and not seen["config"].render
     assert es.main(argv) == 0
-    assert seen["config"].embodiment != "franka_pair"
+    assert not applied(seen["config"])
     text = out.read_text()
-    assert text.count("## jigsaw (franka_pair)") == 1 and text.count("## jigsaw\n") == 1
+    assert text.count(f"## {section}") == 1 and text.count("## jigsaw\n") == 1
 
 
 def test_section_reports_the_replay_check_and_what_did_not_reproduce(es):
