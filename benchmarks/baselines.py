@@ -240,6 +240,7 @@ def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) ->
         stdout, eval_seconds = run(evaluate, work / "logs" / f"evaluate_{output.name}.log")
         report = json.loads(stdout)
         errors = [r["error"] for r in report["rollouts"] if r.get("error")]
+        diverged = sum(1 for e in errors if e.startswith("physics diverged"))
         results.append(
             {
                 "task": task,
@@ -258,6 +259,7 @@ def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) ->
                 "TL": report["TL"],
                 "stages": [[s["subgoal"], s["completed"]] for s in report["stages"]],
                 "skipped": len(report["skipped"]),
+                "diverged": diverged,
                 "errors": errors[:3],
                 "commands": {
                     "export": shown(export),

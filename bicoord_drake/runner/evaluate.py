@@ -49,6 +49,7 @@ from bicoord_drake.metrics.report import EpisodeMetrics, summarize
 from bicoord_drake.policies import load_policy
 from bicoord_drake.runner.evaluate_parallel import run_parallel
 from bicoord_drake.runner.rollouts import (
+    DIVERGED,
     EvaluateConfig,
     ExpertCheck,
     RolloutResult,
@@ -162,6 +163,12 @@ class EvaluationReport:
             )
             for f in self.expert_failures:
                 lines.append(f"  expert failed seed {f['seed']}: {f['reason']}")
+        diverged = sum(1 for r in self.rollouts if (r.error or "").startswith(DIVERGED))
+        if diverged:
+            lines.append(
+                f"{diverged} of {len(self.rollouts)} rollouts ended when the physics diverged "
+                "(counted as failures, with the stages done before)"
+            )
         for r in self.rollouts:
             if r.error:
                 lines.append(f"seed {r.seed} failed: {r.error}")

@@ -46,7 +46,11 @@ from bicoord_drake.models.layout import EmbodimentName, default_embodiment
 from bicoord_drake.policies import bind_policy, reset_policy
 from bicoord_drake.runner import generate as generation
 from bicoord_drake.runner.backends import local_workers
+from bicoord_drake.sim.simulation import PhysicsDivergedError
 from bicoord_drake.tasks.base import Task
+
+#: How a rollout whose physics diverged is reported (the start of its error).
+DIVERGED = "physics diverged"
 
 
 def evaluation_seed(seed: int) -> int:
@@ -210,6 +214,8 @@ def rollout(
             record(obs)
     except InvalidActionError as exc:
         error, tb = f"invalid action at step {env.steps}: {exc}", traceback.format_exc()
+    except PhysicsDivergedError as exc:
+        error, tb = f"{DIVERGED} at step {env.steps}: {exc}", traceback.format_exc()
     except Exception as exc:  # a fault ends this rollout only
         error = f"{who} raised at step {env.steps}: {type(exc).__name__}: {exc}"
         tb = traceback.format_exc()

@@ -19,6 +19,11 @@ from bicoord_drake.sim.cameras import extrinsic_matrix, intrinsic_matrix, intrin
 from bicoord_drake.sim.station import Station, build_station  # noqa: F401  (re-export)
 
 
+class PhysicsDivergedError(RuntimeError):
+    """The simulated state became non-finite: the physics diverged (a numerical failure of the
+    simulation, not an invalid action). The rollout cannot go on."""
+
+
 class Simulation:
     """A Drake simulator over a :class:`Station`, advanced one control step per action."""
 
@@ -87,10 +92,43 @@ class Simulation:
         self._steps = int(frame)
 
     def step(self, action: np.ndarray) -> None:
-        """Apply `action` for one control period (first-order hold from the previous one)."""
+        """Apply `action` for one control period (first-order hold from the previous one).
+
+        Raises :class:`PhysicsDivergedError` if the state becomes non-finite, naming the
+        fastest free body before the step."""
         self._action_port.FixValue(self.context, self._check(action))
+        plant = self.station.plant
+        before = plant.GetPositionsAndVelocities(self.plant_context).copy()
         self._steps += 1
-        self.simulator.AdvanceTo(self._steps * self.station.config.control_period)
+        try:
+            self.simulator.AdvanceTo(self._steps * self.station.config.control_period)
+        except RuntimeError as exc:
+            if "non-finite" not in str(exc):
+                raise
+            raise PhysicsDivergedError(self._divergence(before)) from exc
+        if not np.all(np.isfinite(plant.GetPositionsAndVelocities(self.plant_context))):
+            raise PhysicsDivergedError(self._divergence(before))
+
+    def _divergence(self, before: np.ndarray) -> str:
+        """Why control step `self._steps` diverged: the fastest free body at its start."""
+        plant = self.station.plant
+        context = plant.CreateDefaultContext()
+        plant.SetPositionsAndVelocities(context, before)
+        speeds = []
+        for index in plant.GetFloatingBaseBodies():
+            body = plant.get_body(index)
+            V = body.EvalSpatialVelocityInWorld(context)
+            spin, speed = np.linalg.norm(V.rotational()), np.linalg.norm(V.translational())
+            speeds.append((spin, speed, body.name()))
+        message = f"the physics diverged during control step {self._steps}"
+        if speeds:
+            spin, speed, name = max(speeds)
+            message += (
+                f"; at its start {name!r} spun at {spin:.0f} rad/s and moved at {speed:.2f} m/s "
+                f"(a body spinning fast about its axis of least inertia is unstable at the "
+                f"plant's {plant.time_step():.4f} s step)"
+            )
+        return message
 
     def _check(self, action: np.ndarray) -> np.ndarray:
         a = self.station.layout.check(action)
