@@ -289,8 +289,9 @@ def inputs_text(result: dict[str, Any]) -> str:
     return f"images {result.get('resolution', '?')} + robot state"
 
 
-def markdown(results: list[dict[str, Any]], command: str) -> str:
-    """The baselines table, its settings and the exact commands of every row."""
+def markdown(results: list[dict[str, Any]], command: str, notes: str = "") -> str:
+    """The baselines table, its settings, `notes` (Markdown) and the exact commands of every
+    row."""
     lines = [
         "# Baselines: ACT and Diffusion Policy trained with lerobot-train",
         "",
@@ -303,12 +304,14 @@ def markdown(results: list[dict[str, Any]], command: str) -> str:
         "scored with `scripts/evaluate.py` on unseen-split evaluation seeds (from 100000 up; "
         "seeds whose expert fails are skipped). SR, SSR in percent; TL in control steps of the "
         "successful rollouts; per-stage completion: the share of rollouts in which each stage "
-        "counted. Paper DP: the paper's single-task Diffusion Policy (image-based, GPU, "
+        "counted. Diverged: rollouts that ended when the physics diverged (counted as failures; "
+        "bench_expert_physics.md, 'Thin bodies spinning'). Paper DP: the paper's single-task "
+        "Diffusion Policy (image-based, GPU, "
         "RoboTwin 2.0 settings, 100 rollouts), for reference only: the inputs differ.",
         "",
-        "| task | policy | inputs | demos | train steps | train time | final loss | rollouts | SR "
-        "| SSR | TL | per-stage completion | paper DP SR / SSR | machine | date |",
-        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---|---|",
+        "| task | policy | inputs | demos | train steps | train time | final loss | rollouts "
+        "| diverged | SR | SSR | TL | per-stage completion | paper DP SR / SSR | machine | date |",
+        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---|---|",
     ]
     for r in results:
         stages = "; ".join(f"{name} {_pct(c)}" for name, c in r["stages"])
@@ -317,10 +320,13 @@ def markdown(results: list[dict[str, Any]], command: str) -> str:
         loss = "-" if r["final_loss"] is None else f"{r['final_loss']:.3f}"
         lines.append(
             f"| {r['task']} | {r['policy']} | {inputs_text(r)} | {r['demos']} | {r['steps']} | "
-            f"{r['train_seconds'] / 60:.1f} min | {loss} | {r['n']} | {_pct(r['SR'])} | "
+            f"{r['train_seconds'] / 60:.1f} min | {loss} | {r['n']} | {r.get('diverged', '-')} | "
+            f"{_pct(r['SR'])} | "
             f"{_pct(r['SSR'])} | {r['TL'] if r['TL'] is not None else '-'} | {stages} | "
             f"{paper_text} | {r['machine']} | {r['date']} |"
         )
+    if notes.strip():
+        lines += ["", notes.strip()]
     lines += ["", "## Commands", ""]
     for r in results:
         lines += [f"### {r['task']}, {r['policy']} ({inputs_text(r)}), {r['steps']} steps", ""]
@@ -379,6 +385,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--work", required=True, help="datasets, checkpoints, logs, results")
     parser.add_argument("--out", required=True, help="the Markdown table to (re)write")
     parser.add_argument("--force", action="store_true", help="redo results already in --work")
+    parser.add_argument(
+        "--notes", help="a Markdown file placed between the table and the commands (analysis)"
+    )
     args = parser.parse_args(argv)
     args.tasks = [t for t in args.tasks.split(",") if t]
     args.policies = [p for p in args.policies.split(",") if p]
@@ -420,7 +429,8 @@ def main(argv: list[str] | None = None) -> int:
         (r["task"], r["policy"], r.get("inputs", "state"), r["demos"], r["steps"]): r
         for r in read_results(results_file)
     }
-    Path(args.out).write_text(markdown(list(latest.values()), command) + "\n")
+    notes = Path(args.notes).read_text() if args.notes else ""
+    Path(args.out).write_text(markdown(list(latest.values()), command, notes) + "\n")
     print(f"wrote {args.out}")
     return 0
 

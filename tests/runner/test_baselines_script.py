@@ -68,6 +68,7 @@ def test_table_rows(baselines):
         "train_seconds": 600.0,
         "final_loss": 0.1234,
         "n": 50,
+        "diverged": 2,
         "SR": 0.1,
         "SSR": 0.35,
         "TL": 140.5,
@@ -80,7 +81,7 @@ def test_table_rows(baselines):
     text = baselines.markdown([result], "python benchmarks/baselines.py ...")
     row = next(line for line in text.splitlines() if line.startswith("| balance_roller"))
     cells = [c.strip() for c in row.strip("|").split("|")]
-    assert cells[:13] == [
+    assert cells[:14] == [
         "balance_roller",
         "act",
         "state",
@@ -89,6 +90,7 @@ def test_table_rows(baselines):
         "10.0 min",
         "0.123",
         "50",
+        "2",
         "10.0",
         "35.0",
         "140.5",
@@ -96,3 +98,26 @@ def test_table_rows(baselines):
         "34.0 / 67.0",
     ]
     assert "lerobot-train t" in text
+
+
+def test_notes_stand_between_the_table_and_the_commands(baselines):
+    result = {
+        "task": "jigsaw",
+        "policy": "diffusion",
+        "demos": 50,
+        "steps": 10,
+        "train_seconds": 6.0,
+        "final_loss": None,
+        "n": 1,
+        "SR": 0.0,
+        "SSR": 0.0,
+        "TL": None,
+        "stages": [],
+        "errors": [],
+        "commands": {"export": "e", "train": "t", "evaluate": "v"},
+        "machine": "m",
+        "date": "d",
+    }
+    text = baselines.markdown([result], "cmd", "## Notes\n\nundertrained")
+    assert text.index("| jigsaw |") < text.index("undertrained") < text.index("## Commands")
+    assert "| jigsaw | diffusion | state | 50 | 10 | 0.1 min | - | 1 | - |" in text
