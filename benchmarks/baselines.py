@@ -134,6 +134,27 @@ def run(command: list[str], log: Path) -> tuple[str, float]:
 
 
 # --------------------------------------------------------------------------- one task
+#: Written into a checkpoint directory once its training finished: the command and its time.
+TRAINED = "baselines_trained.json"
+
+
+def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
+    """`data` as JSON at `path`, written to a temporary file first."""
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data))
+    tmp.replace(path)
+
+
+def trained(output: Path, train: list[str]) -> float | None:
+    """Training seconds if `output` holds a finished training by the same command (an
+    interrupted run resumes at its evaluation), else None."""
+    try:
+        record = json.loads((output / TRAINED).read_text())
+    except (OSError, ValueError):
+        return None
+    return float(record["seconds"]) if record.get("command") == shown(train) else None
+
+
 def export_command(
     files: list[Path], dataset: Path, inputs: str, source: Path | None = None
 ) -> list[str]:
@@ -227,14 +248,18 @@ def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) ->
     results = []
     for policy in todo:
         output = work / f"{policy}_{args.inputs}_{args.demos}demos_{args.steps}steps"
-        if output.exists():
-            shutil.rmtree(output)  # lerobot-train refuses an existing directory
         train = train_command(policy, task, dataset, output, args)
-        print(f"[{task}] train {policy}: {args.steps} steps", flush=True)
         train_log = work / "logs" / f"train_{output.name}.log"
-        _, train_seconds = run(train, train_log)
-        log = train_log.read_text()
-        losses = _LOSS.findall(log)
+        train_seconds = trained(output, train)
+        if train_seconds is None:
+            if output.exists():
+                shutil.rmtree(output)  # lerobot-train refuses an existing directory
+            print(f"[{task}] train {policy}: {args.steps} steps", flush=True)
+            _, train_seconds = run(train, train_log)
+            write_json_atomic(output / TRAINED, {"command": shown(train), "seconds": train_seconds})
+        else:
+            print(f"[{task}] {policy}: trained before ({output}), evaluating it", flush=True)
+        losses = _LOSS.findall(train_log.read_text())
         evaluate = evaluate_command(task, output, work / "eval", args)
         print(f"[{task}] evaluate {policy}: {args.eval_episodes} rollouts", flush=True)
         stdout, eval_seconds = run(evaluate, work / "logs" / f"evaluate_{output.name}.log")

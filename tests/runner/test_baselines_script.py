@@ -121,3 +121,15 @@ def test_notes_stand_between_the_table_and_the_commands(baselines):
     text = baselines.markdown([result], "cmd", "## Notes\n\nundertrained")
     assert text.index("| jigsaw |") < text.index("undertrained") < text.index("## Commands")
     assert "| jigsaw | diffusion | state | 50 | 10 | 0.1 min | - | 1 | - |" in text
+
+
+def test_a_finished_training_is_reused_only_by_the_same_command(baselines, tmp_path):
+    out = tmp_path / "ckpt"
+    out.mkdir()
+    train = ["lerobot-train", "--steps=10"]
+    assert baselines.trained(out, train) is None  # nothing recorded: train
+    baselines.write_json_atomic(
+        out / baselines.TRAINED, {"command": baselines.shown(train), "seconds": 12.5}
+    )
+    assert baselines.trained(out, train) == 12.5
+    assert baselines.trained(out, ["lerobot-train", "--steps=20"]) is None
