@@ -558,7 +558,8 @@ class PlanningModel:
     @contextmanager
     def padded(self, clearance: float, env_clearance: float) -> Iterator[None]:
         """`set_padding` within the block; the previous padding is restored after it."""
-        previous = self.checker.GetPaddingMatrix()
+        # A copy: the checker returns a live view of its padding, which set_padding overwrites.
+        previous = np.array(self.checker.GetPaddingMatrix(), copy=True)
         self.set_padding(clearance, env_clearance)
         try:
             yield
