@@ -187,6 +187,26 @@ def test_pour_about_a_given_pivot_keeps_that_point_still():
     assert max(mouth) == pytest.approx(np.sin(np.radians(45)), abs=1e-3)  # tipped toward d
 
 
+def test_rehearsal_puts_the_state_back_whether_the_plan_works_or_not():
+    ctx = sk.SkillContext(
+        PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75
+    )
+    ctx.model.set_padding(0.01, 0.002)
+    padding = np.array(ctx.model.checker.GetPaddingMatrix(), copy=True)
+    q0, X0 = ctx.q.copy(), ctx.model.object_pose("bowl")
+    with ctx.rehearsal():
+        sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=0.12)
+        assert "left" in ctx.model.held
+    assert not ctx.model.held and np.array_equal(ctx.q, q0)
+    assert ctx.model.object_pose("bowl").IsExactlyEqualTo(X0)
+    np.testing.assert_array_equal(ctx.model.checker.GetPaddingMatrix(), padding)
+    sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=0.12)
+    q1 = ctx.q.copy()
+    with pytest.raises(PlanningError), ctx.rehearsal():
+        sk.pour(ctx, "left", np.radians(170))
+    assert ctx.model.held["left"].name == "bowl" and np.array_equal(ctx.q, q1)
+
+
 def test_push_slides_a_cube_with_a_held_stick_in_physics():
     stick = SceneObject(
         name="stick",

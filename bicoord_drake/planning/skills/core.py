@@ -136,6 +136,10 @@ class Motion:
         return layout.compose(arms, {"left": g[:, 0], "right": g[:, 1]})
 
 
+class _Rehearsed(Exception):
+    """Ends a :meth:`SkillContext.rehearsal` block so that its transaction rolls back."""
+
+
 class SkillContext:
     """The state skills plan from and advance, for both arms of a :class:`PlanningModel`.
 
@@ -237,6 +241,21 @@ class SkillContext:
                 self.model.set_gripper(side, self.model.embodiment.home_opening)
             self.q, self.opening, self.stabilized = q, opening, stabilized
             raise
+
+    @contextmanager
+    def rehearsal(self) -> Iterator[None]:
+        """Plan inside the block only to see whether it can be planned: afterwards everything
+        :meth:`transaction` restores, and the checker's padding, is put back as it was, whether
+        the block raised or not."""
+        padding = np.array(self.model.checker.GetPaddingMatrix(), copy=True)
+        try:
+            with self.transaction():
+                yield
+                raise _Rehearsed
+        except _Rehearsed:
+            pass
+        finally:
+            self.model.checker.SetPaddingMatrix(padding)
 
     # ------------------------------------------------------------------ motions
     def edge_free(self, a: np.ndarray, b: np.ndarray) -> bool:
