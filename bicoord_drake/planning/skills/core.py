@@ -427,6 +427,9 @@ def _motion_free(
 
 
 def combine(left: ArmPlan, right: ArmPlan) -> Motion:
+    """Both plans from the same step, the shorter one holding its last sample: no collision
+    check (for plans already checked against each other, e.g. one arm's track planned with
+    the other arm where it holds)."""
     n = max(left.num_steps, right.num_steps)
     left, right = left.padded(n), right.padded(n)
     events = [(i, "left", k, o) for i, k, o in left.events]
