@@ -38,7 +38,7 @@ objects). Each class gets its own minimum-distance bound per call.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import lru_cache
@@ -558,16 +558,22 @@ class PlanningModel:
     @contextmanager
     def padded(self, clearance: float, env_clearance: float) -> Iterator[None]:
         """`set_padding` within the block; the previous padding is restored after it."""
-        previous = self.checker.GetPaddingMatrix()
+        # A copy: the checker returns a live view of its padding, which set_padding overwrites.
+        previous = np.array(self.checker.GetPaddingMatrix(), copy=True)
         self.set_padding(clearance, env_clearance)
         try:
             yield
         finally:
             self.checker.SetPaddingMatrix(previous)
 
-    def collision_free(self, q: np.ndarray) -> bool:
-        """Whether `q` is collision-free under the current padding (held objects included)."""
-        return bool(self.checker.CheckConfigCollisionFree(self.full_q(q)))
+    def collision_free(self, q: np.ndarray, openings: Mapping[str, float] | None = None) -> bool:
+        """Whether `q` is collision-free under the current padding (held objects included), the
+        fingers as set (:meth:`set_gripper`) or, given `openings` (side -> opening), at those."""
+        q_full = self.full_q(q)
+        for side, opening in (openings or {}).items():
+            finger = float(self.embodiment.arm.gripper.finger_position(opening))
+            q_full[self.finger_indices[side]] = finger
+        return bool(self.checker.CheckConfigCollisionFree(q_full))
 
     def colliding_pairs(self, q: np.ndarray, margin: float = 0.0) -> list[tuple[str, str, float]]:
         """Body pairs closer than their padding + `margin` at `q`: (body, other, distance)."""

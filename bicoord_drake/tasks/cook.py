@@ -112,6 +112,9 @@ POUR_HOLD = 20
 #: first tip, and the control steps kept free after a retry (lift and settle).
 SERVE_RETRIES, SERVE_RESERVE = 2, 60
 SETTLE_STEPS = 10
+#: How far (m) the catcher carries the skillet away, in the order tried, when the left cannot
+#: pick a roll that bounced out beside the catcher's hand.
+ROOM_SHIFTS = (0.06, 0.10)
 #: Where rolls that lie in the pan are kept in the planning model (see ``_park``).
 PARKED = np.array([0.0, 2.0, -2.0])
 
@@ -297,7 +300,7 @@ class Cook(Task):
             ctx.sync(ctx.q, object_poses=view.object_transforms())
             _park(ctx, in_pan)
             try:
-                again = merge(ctx, pick(ctx, "left", roll, kinds=["top"]), None)
+                again = _pick_making_room(ctx, roll)
             except PlanningError:
                 # Seeds 19, 21: a roll lying on the other one, beside the catcher's gripper,
                 # cannot be grasped (ik_collision). It stays where it is, planned as in the pan.
@@ -484,6 +487,33 @@ def _aim_beside(view: WorldView, roll: str) -> list[float]:
             "pan_full", f"no room beside {roll} ({dx:+.3f} m from the pan's axis along the flight)"
         )
     return [side * ROLL_REACH, (side * ROLL_REACH + nearest) / 2, nearest]
+
+
+def _pick_making_room(ctx: SkillContext, roll: str) -> Motion:
+    """Left picks `roll` where it lies (top grasps). If that cannot be planned with the
+    skillet where it is (a roll that bounced out lies by the catcher's hand), right first
+    carries the skillet straight and level away from the roll (horizontally, from the roll
+    toward its own hand) by each of ROOM_SHIFTS in turn - not when the roll lies in the
+    skillet (on the other one), which would go along."""
+    reasons = []
+    X_WT = ctx.model.tcp_pose(ctx.q, "right")
+    X_WR = ctx.model.object_pose(roll)
+    poses = {"skillet": ctx.model.held_pose("right", ctx.q), roll: X_WR}
+    away = X_WT.translation() - X_WR.translation()
+    away[2] = 0.0
+    away /= max(float(np.linalg.norm(away)), 1e-9)
+    shifts = () if _lies_in_pan(poses, roll) else ROOM_SHIFTS
+    for shift in (0.0, *shifts):
+        try:
+            with ctx.transaction():
+                room = None
+                if shift > 0.0:
+                    X_room = RigidTransform(X_WT.rotation(), X_WT.translation() + shift * away)
+                    room = move_tcp(ctx, "right", X_room, label="make room", straight=True)
+                return merge(ctx, pick(ctx, "left", roll, kinds=["top"]), room)
+        except PlanningError as err:
+            reasons.append(err.reason)
+    raise PlanningError("pick_failed", f"left cannot pick {roll!r} ({', '.join(reasons)})")
 
 
 def _toss(ctx: SkillContext, aims: list[float], steep_first: bool = False) -> Motion:

@@ -30,6 +30,7 @@ from bicoord_drake.planning.grasps import (
 from bicoord_drake.planning.skills import (
     ArmPlan,
     SkillContext,
+    combine,
     hold,
     merge,
     move_tcp,
@@ -92,6 +93,8 @@ LIFT = 0.08
 PUSH_Z = 0.024
 START_X, END_X = 0.035, -0.168
 APPROACH = 0.04
+#: A cube pushed out too turned to be picked is pushed on by NUDGE (m), up to NUDGES times.
+NUDGE, NUDGES = 0.02, 2
 #: Before drawing the roller back, its tip is raised this much (m) off the pushing line.
 RAISE = 0.008
 PUSH_SPEED = 0.35
@@ -259,17 +262,36 @@ class FetchBlockWithRoller(Task):
         ctx.q = ctx.with_arm("left", rest.q[-1])
         yield from run(merge(ctx, rest, push, stretch=False, ignore=[CUBE]))
         # ---- stage 2: right draws the roller back out and lays it down, left picks the cube
-        # and sets it on the plate (the arm leaving is planned first)
-        right = withdraw(ctx, START_X).then(lay_down(ctx, tool), retreat(ctx, "right"))
-        top = TABLE_TOP + SHELF_DIMS.top + CUBE_EDGE / 2
-        goal = RigidTransform([SHELF_XY[0], SHELF_XY[1], top + 0.001])
-        left = pick(ctx, "left", CUBE, grasps=nearest_first(ctx, "left", cube_grasps(ctx))).then(
-            place(ctx, "left", goal, release_steps=RELEASE_STEPS),
-            retreat(ctx, "left"),
-        )
+        # and sets it on the plate (the arm leaving is planned first). Past the walls nothing
+        # keeps the cube square: turned, it can leave no room for a finger by the shelf, and
+        # then the roller pushes it on before this is planned again.
+        for nudge in range(NUDGES + 1):
+            try:
+                with ctx.transaction():
+                    left, right = _fetch_and_clear(ctx, tool)
+                break
+            except PlanningError as err:
+                if err.reason != "pick_failed" or nudge == NUDGES:
+                    raise
+            # one arm moves, its track checked against the other: no merge (the measured roller
+            # may start touching the table, which only a track allows)
+            yield from run(combine(hold(ctx, "left", 0), push_on(ctx, NUDGE)))
         yield from run(merge(ctx, left, right, ignore=[CUBE]))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
+
+
+def _fetch_and_clear(ctx: SkillContext, tool: RollerTool) -> tuple[ArmPlan, ArmPlan]:
+    """Stage 2's plans: the right draws the roller back, lays it down and retreats; the left
+    picks the cube and sets it on the middle of the plate."""
+    right = withdraw(ctx, START_X).then(lay_down(ctx, tool), retreat(ctx, "right"))
+    top = TABLE_TOP + SHELF_DIMS.top + CUBE_EDGE / 2
+    goal = RigidTransform([SHELF_XY[0], SHELF_XY[1], top + 0.001])
+    left = pick(ctx, "left", CUBE, grasps=nearest_first(ctx, "left", cube_grasps(ctx))).then(
+        place(ctx, "left", goal, release_steps=RELEASE_STEPS),
+        retreat(ctx, "left"),
+    )
+    return left, right
 
 
 # -------------------------------------------------------------------- objects
@@ -310,8 +332,8 @@ def _shifted(g: Grasp, X_WO: RigidTransform, shift: np.ndarray) -> Grasp:
 
 
 def cube_grasps(ctx: SkillContext) -> list[Grasp]:
-    """Top grasps of the pushed-out cube with the fingers across y (on its side faces): a
-    finger across x would come down by the shelf's edge or the roller's tip."""
+    """Top grasps of the pushed-out cube with the fingers on the side faces nearest to across
+    y: a finger across x would come down by the shelf's edge or the roller's tip."""
     grasps = grasp_candidates(
         ctx.model.object(CUBE),
         ctx.model.embodiment.arm.gripper,
@@ -319,10 +341,10 @@ def cube_grasps(ctx: SkillContext) -> list[Grasp]:
         base=arm_base(ctx.model.embodiment, "left"),
         kinds=["top"],
     )
-    across_y = [g for g in grasps if abs(g.finger_axis[1]) > math.cos(math.radians(40))]
-    if not across_y:
-        raise PlanningError("no_grasp", "no top grasp of the cube with the fingers across y")
-    return across_y
+    if not grasps:
+        raise PlanningError("no_grasp", "no top grasp of the cube")
+    best = max(abs(g.finger_axis[1]) for g in grasps)
+    return [g for g in grasps if abs(g.finger_axis[1]) > best - 1e-6]
 
 
 def exit_pregrasp(ctx: SkillContext) -> RigidTransform:
@@ -421,6 +443,30 @@ def push_through(
     plan = above.then(down, along)
     plan.label = "push the cube out with the roller"
     return plan
+
+
+def push_on(ctx: SkillContext, distance: float) -> ArmPlan:
+    """Push the cube `distance` (m) further along -x with the roller: the grasp re-measured,
+    the roller levelled again with its tip on the pushing line, then along it, slowly."""
+    X_now = ctx.model.tcp_pose(ctx.q, "right")
+    tool = RollerTool.from_grasp(ctx)
+    tip = ctx.model.held_pose("right", ctx.q) @ tool.p_OQ
+    start = np.array([tip[0], tip[1], TABLE_TOP + PUSH_Z])
+    end = start - [distance, 0.0, 0.0]
+    level = track(
+        ctx,
+        "right",
+        _between(X_now, tool.tcp_at(start)),
+        float(np.linalg.norm(start - tip)),
+        0.1,
+        label="level the roller",
+        ignore=[CUBE],
+    )
+    with _slow(ctx, PUSH_SPEED):
+        on = track(
+            ctx, "right", tool.line(start, end), distance, 0.0, label="push on", ignore=[CUBE]
+        )
+    return level.then(on)
 
 
 def withdraw(ctx: SkillContext, start_x: float) -> ArmPlan:

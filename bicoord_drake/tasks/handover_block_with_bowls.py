@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from functools import partial
 
 import numpy as np
@@ -21,6 +21,7 @@ from bicoord_drake.planning.grasps import (
 )
 from bicoord_drake.planning.skills import (
     ArmPlan,
+    Motion,
     SkillContext,
     hold,
     merge,
@@ -82,11 +83,18 @@ POUR_YAW = -np.pi / 2  # bowl yaw that turns the spout (bowl +x) toward POUR_DIR
 #: that the right gripper stays clear of the left wrist, which ends above the fall.
 CATCH_OFFSET = np.array([0.03, -0.03, 0.0])
 CATCH_DROP = 0.07  # the catching bowl's rim this far below the lip (6 cm under the bottom)
+#: Azimuths of the right grip around the catching bowl (world, from +x) and yaws of the spout
+#: (from POUR_DIRECTION) tried for the meeting, in this order.
+CATCH_AZIMUTHS = tuple(np.radians([-30, -10, -50, 10, -70]))
+SPOUT_YAWS = (0.0, 0.25, -0.25, 0.5, -0.5)
 POUR_ANGLE = np.radians(80)
 POUR_HOLD = 10
 SPEED = 0.8
 #: Inter-arm clearance (m) the planner keeps: the two held bowls work 3-4 cm apart.
 CLEARANCE = 0.02
+#: Meetings tried before the expert gives up pouring (the pour is planned from the grasps
+#: measured at the meeting, which can differ from the rehearsed ones by a degree or so).
+MEETINGS = 3
 #: Alignment the expert requires (measured) before it tilts.
 ALIGN_XY = 0.05  # lip within this of the catching bowl's axis (xy)
 ALIGN_Z = (0.03, 0.10)  # lip this high above the catching bowl's rim
@@ -275,18 +283,7 @@ class HandoverBlockWithBowls(Task):
             yield from run(merge(ctx, left, right))
             # ---- stage 2: right holds its bowl under the meeting point, left brings its spout
             # lip above it; only when the measured rims are aligned does left tilt.
-            right = move(ctx, "right", _catch_joints(ctx), label="hold under the spout")
-            left = move(ctx, "left", _spout_joints(ctx), label="align the spout")
-            yield from run(merge(ctx, left, right))
-            for attempt in range(2):
-                error = _misalignment(view)
-                if error is None:
-                    break
-                if attempt == 1:
-                    raise PlanningError("rims_not_aligned", error)
-                left = move(ctx, "left", _spout_joints(ctx), label="re-align the spout")
-                yield from run(merge(ctx, left, None))
-            yield from run(merge(ctx, _pour_at_lip(ctx, POUR_ANGLE, POUR_HOLD), None))
+            yield from _meet_and_pour(ctx, view, run)
             # ---- stage 3: left puts its empty bowl back, right sets its bowl on the target
             left = place(ctx, "left", table_target(left_xy, scene.object("pour_bowl").shape))
             right = place(ctx, "right", table_target(target_xy, CATCH_BOWL))
@@ -357,9 +354,70 @@ def _pick_pour_bowl(ctx: SkillContext, lift: float) -> ArmPlan:
     return pick(ctx, side, name, lift=lift, grasps=candidates, approach_opening=opening)
 
 
-def _catch_joints(ctx: SkillContext) -> np.ndarray:
-    """Right-arm joints holding the catching bowl level under the spout, its gripper on the
-    side away from the pour and from the left wrist (+x, then toward the robot)."""
+def _meet_and_pour(
+    ctx: SkillContext, view: WorldView, run: Callable[[Motion], Iterator[np.ndarray]]
+) -> Iterator[np.ndarray]:
+    """Meet (right under the spout, left's spout lip above it: :func:`_meeting`), re-align
+    the spout until the measured rims are aligned, and pour. The pour is planned from the
+    grasps measured at the meeting; if it cannot be (a bowl turned in its grip on the way),
+    the arms move on to the next meeting, up to MEETINGS of them."""
+    tried: list[tuple[int, float]] = []
+    reasons = []
+    for _ in range(MEETINGS):
+        key, q_catch, q_spout = _meeting(ctx, tried)
+        tried.append(key)
+        right = None
+        if not np.allclose(q_catch, ctx.arm_q("right")):
+            right = move(ctx, "right", q_catch, label="hold under the spout")
+        left = move(ctx, "left", q_spout, label="align the spout")
+        yield from run(merge(ctx, left, right))
+        for attempt in range(2):
+            error = _misalignment(view)
+            if error is None:
+                break
+            if attempt == 1:
+                raise PlanningError("rims_not_aligned", error)
+            left = move(ctx, "left", _spout_joints(ctx, (key[1],)), label="re-align the spout")
+            yield from run(merge(ctx, left, None))
+        try:
+            pour_plan = _pour_at_lip(ctx, POUR_ANGLE, POUR_HOLD)
+        except PlanningError as err:
+            reasons.append(str(err))
+            continue
+        yield from run(merge(ctx, pour_plan, None))
+        return
+    raise PlanningError("pour_failed", f"no pour from {MEETINGS} meetings ({'; '.join(reasons)})")
+
+
+def _meeting(
+    ctx: SkillContext, skip: Sequence[tuple[int, float]] = ()
+) -> tuple[tuple[int, float], np.ndarray, np.ndarray]:
+    """((catch azimuth index, spout yaw), right joints, left joints) of the first meeting in
+    the order of CATCH_AZIMUTHS and SPOUT_YAWS, not in `skip`, from which the pour can be
+    planned for the grasps the arms have now (a bowl held a little turned in its grip can
+    bring the wrists together at the end of the tilt, or turn the wrist over)."""
+    reasons = []
+    for k, q_catch in _catch_options(ctx):
+        for yaw, q_spout in _spout_options(ctx, SPOUT_YAWS, q_catch):
+            if (k, yaw) in skip:
+                continue
+            with ctx.rehearsal():
+                ctx.q = ctx.with_arm("left", q_spout)
+                ctx.q = ctx.with_arm("right", q_catch)
+                try:
+                    _pour_at_lip(ctx, POUR_ANGLE, POUR_HOLD)
+                    return (k, yaw), q_catch, q_spout
+                except PlanningError as err:
+                    reasons.append(err.reason)
+    if not reasons:
+        raise PlanningError("align_unreachable", "left cannot hold the spout above the bowl")
+    raise PlanningError("pour_failed", f"no meeting the pour can start from ({reasons})")
+
+
+def _catch_options(ctx: SkillContext) -> Iterator[tuple[int, np.ndarray]]:
+    """(index, right-arm joints) holding the catching bowl level under the spout, its gripper
+    on the side away from the pour and from the left wrist (+x, then toward the robot): one
+    per reachable azimuth of CATCH_AZIMUTHS; none reachable raises catch_unreachable."""
     from bicoord_drake.planning.ik import TcpTarget
 
     held = ctx.model.held["right"]
@@ -369,32 +427,49 @@ def _catch_joints(ctx: SkillContext) -> np.ndarray:
     a0 = float(np.arctan2(p_BT[1], p_BT[0]))  # the grip's azimuth in the bowl frame
     p_bowl = LIP_AT + CATCH_OFFSET + [0.0, 0.0, -CATCH_DROP - CATCH_BOWL.height]
     reasons = []
-    for azimuth in np.radians([-30, -10, -50, 10, -70]):
+    for k, azimuth in enumerate(CATCH_AZIMUTHS):
         X_WB = RigidTransform(RotationMatrix.MakeZRotation(azimuth - a0), p_bowl)
         try:
-            return solve_tcp(ctx, "right", TcpTarget(X_WB @ X_BT))
+            q = solve_tcp(ctx, "right", TcpTarget(X_WB @ X_BT))
         except PlanningError as err:
             reasons.append(err.reason)
-    raise PlanningError("catch_unreachable", f"right cannot hold its bowl there ({reasons})")
+            continue
+        yield k, q
+    if len(reasons) == len(CATCH_AZIMUTHS):
+        raise PlanningError("catch_unreachable", f"right cannot hold its bowl there ({reasons})")
 
 
-def _spout_joints(ctx: SkillContext) -> np.ndarray:
-    """Left-arm joints holding the pouring bowl level with its spout lip at LIP_AT, facing +x
-    (small yaws tried if that is out of reach)."""
+def _spout_options(
+    ctx: SkillContext, yaws: Sequence[float], q_right: np.ndarray | None = None
+) -> Iterator[tuple[float, np.ndarray]]:
+    """(yaw, left-arm joints) holding the pouring bowl level with its spout lip at LIP_AT,
+    facing +x turned by yaw, for each reachable yaw of `yaws` (the right arm at `q_right`,
+    default where it is)."""
+    from bicoord_drake.planning.ik import TcpTarget
+
     held = ctx.model.held["left"]
     tcp_x = ctx.model.embodiment.arm.gripper.tcp_x
     X_BT = held.X_GO.inverse() @ RigidTransform([tcp_x, 0.0, 0.0])
-    from bicoord_drake.planning.ik import TcpTarget
-
-    reasons = []
-    for yaw in (0.0, 0.25, -0.25, 0.5, -0.5):
+    for yaw in yaws:
         R_WB = RotationMatrix.MakeZRotation(POUR_YAW + yaw)
         X_WB = RigidTransform(R_WB, LIP_AT - R_WB @ LIP_POINT)
+        saved = ctx.q.copy()
+        if q_right is not None:
+            ctx.q = ctx.with_arm("right", q_right)
         try:
-            return solve_tcp(ctx, "left", TcpTarget(X_WB @ X_BT))
-        except PlanningError as err:
-            reasons.append(err.reason)
-    raise PlanningError("align_unreachable", f"left cannot hold the spout at LIP_AT ({reasons})")
+            q = solve_tcp(ctx, "left", TcpTarget(X_WB @ X_BT))
+        except PlanningError:
+            continue
+        finally:
+            ctx.q = saved
+        yield float(yaw), q
+
+
+def _spout_joints(ctx: SkillContext, yaws: Sequence[float]) -> np.ndarray:
+    """Left-arm joints of the first reachable spout yaw of `yaws` (:func:`_spout_options`)."""
+    for _, q in _spout_options(ctx, yaws):
+        return q
+    raise PlanningError("align_unreachable", "left cannot hold the spout at LIP_AT")
 
 
 def _misalignment(view: WorldView) -> str | None:

@@ -42,6 +42,19 @@ def test_path_distance_bounds_point_motion(cubes_model):
             assert np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)) <= d + 1e-9
 
 
+def test_padded_restores_the_padding_it_found(cubes_model):
+    """Padding set inside a `padded` block does not leak out of it, also when it raises."""
+    m = cubes_model
+    m.set_padding(0.03, 0.01)
+    before = np.array(m.checker.GetPaddingMatrix(), copy=True)
+    with m.padded(0.0, 0.0):
+        assert np.max(m.checker.GetPaddingMatrix()) == 0.0
+    np.testing.assert_array_equal(m.checker.GetPaddingMatrix(), before)
+    with pytest.raises(RuntimeError), m.padded(0.05, 0.02):
+        raise RuntimeError("inside the block")
+    np.testing.assert_array_equal(m.checker.GetPaddingMatrix(), before)
+
+
 def test_free_straight_line_is_returned_as_is(cubes_model):
     m = cubes_model
     goal = m.home + np.array([0.2, 0.1, -0.1, 0, 0, 0, -0.2, 0.1, -0.1, 0, 0, 0])

@@ -187,6 +187,51 @@ def test_pour_about_a_given_pivot_keeps_that_point_still():
     assert max(mouth) == pytest.approx(np.sin(np.radians(45)), abs=1e-3)  # tipped toward d
 
 
+def test_rehearsal_puts_the_state_back_whether_the_plan_works_or_not():
+    ctx = sk.SkillContext(
+        PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75
+    )
+    ctx.model.set_padding(0.01, 0.002)
+    padding = np.array(ctx.model.checker.GetPaddingMatrix(), copy=True)
+    q0, X0 = ctx.q.copy(), ctx.model.object_pose("bowl")
+    with ctx.rehearsal():
+        sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=0.12)
+        assert "left" in ctx.model.held
+    assert not ctx.model.held and np.array_equal(ctx.q, q0)
+    assert ctx.model.object_pose("bowl").IsExactlyEqualTo(X0)
+    np.testing.assert_array_equal(ctx.model.checker.GetPaddingMatrix(), padding)
+    sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=0.12)
+    q1 = ctx.q.copy()
+    with pytest.raises(PlanningError), ctx.rehearsal():
+        sk.pour(ctx, "left", np.radians(170))
+    assert ctx.model.held["left"].name == "bowl" and np.array_equal(ctx.q, q1)
+
+
+def test_merge_can_check_the_fingers_as_open_as_commanded():
+    """The checker's fingers follow `openings`: open around a cube they are free, closed they
+    pass through it; the finger bound keeps the widest opening of the last gripper_steps."""
+    from bicoord_drake.planning.grasps import grasp_candidates
+    from bicoord_drake.planning.skills.core import _finger_bounds
+
+    scene = Scene(name="one_cube", objects=(cube("a", -0.15, -0.1),))
+    ctx = sk.SkillContext(PlanningModel(scene))
+    m = ctx.model
+    grasp = grasp_candidates(scene.object("a"), m.embodiment.arm.gripper, kinds=["top"])[0]
+    q = ctx.ik.solve_single(
+        "left", TcpTarget(grasp.X_WG), m.home[6:], clearance=0.0, env_clearance=0.0, ignore=["a"]
+    )
+    m.set_padding(0.0, 0.0)
+    assert m.collision_free(q)
+    assert not m.collision_free(q, {"left": 0.0})
+    assert m.collision_free(q)  # the fingers as set again
+    n, w = 12, ctx.gripper_steps
+    openings = np.ones((n, 2))
+    openings[2:, 0] = 0.2
+    bounds = _finger_bounds(ctx, sk.Motion(np.zeros((n, 12)), openings))
+    assert [b["left"] for b in bounds] == [1.0] * (2 + w) + [0.2] * (n - 2 - w)
+    assert all(b["right"] == 1.0 for b in bounds)
+
+
 def test_push_slides_a_cube_with_a_held_stick_in_physics():
     stick = SceneObject(
         name="stick",

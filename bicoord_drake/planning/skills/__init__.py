@@ -14,7 +14,8 @@ two n-joint arms, 14 for the ViperX pair).
 module                    skills
 ========================  ===================================================================
 :mod:`.core`              :class:`ArmPlan`, :class:`Motion`, :class:`SkillContext` (``sync``,
-                          ``refresh_grasps``, ``transaction``), :func:`merge`, :func:`hold`,
+                          ``refresh_grasps``, ``transaction``, ``rehearsal``), :func:`merge`,
+                          :func:`combine` (two plans as they are, unchecked), :func:`hold`,
                           :func:`plan_both` (two arms' parts, either planned first)
 :mod:`.arm`               :func:`move`, :func:`move_tcp`, :func:`solve_tcp`, :func:`grip`,
                           :func:`lift`, :func:`retreat`,
@@ -82,6 +83,7 @@ from bicoord_drake.planning.skills.core import (
     ArmPlan,
     Motion,
     SkillContext,
+    combine,
     hold,
     merge,
     plan_both,
@@ -124,6 +126,7 @@ __all__ = [
     "arrive_as_leaves",
     "carry_above",
     "carry_together",
+    "combine",
     "crossing_grasps",
     "drop_into",
     "fingers_cross",

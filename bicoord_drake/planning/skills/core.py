@@ -136,6 +136,10 @@ class Motion:
         return layout.compose(arms, {"left": g[:, 0], "right": g[:, 1]})
 
 
+class _Rehearsed(Exception):
+    """Ends a :meth:`SkillContext.rehearsal` block so that its transaction rolls back."""
+
+
 class SkillContext:
     """The state skills plan from and advance, for both arms of a :class:`PlanningModel`.
 
@@ -237,6 +241,21 @@ class SkillContext:
                 self.model.set_gripper(side, self.model.embodiment.home_opening)
             self.q, self.opening, self.stabilized = q, opening, stabilized
             raise
+
+    @contextmanager
+    def rehearsal(self) -> Iterator[None]:
+        """Plan inside the block only to see whether it can be planned: afterwards everything
+        :meth:`transaction` restores, and the checker's padding, is put back as it was, whether
+        the block raised or not."""
+        padding = np.array(self.model.checker.GetPaddingMatrix(), copy=True)
+        try:
+            with self.transaction():
+                yield
+                raise _Rehearsed
+        except _Rehearsed:
+            pass
+        finally:
+            self.model.checker.SetPaddingMatrix(padding)
 
     # ------------------------------------------------------------------ motions
     def edge_free(self, a: np.ndarray, b: np.ndarray) -> bool:
@@ -351,7 +370,12 @@ def merge(
     closer than the checker allows, the plans run at their own pace and the later-starting
     one is delayed (first the right, then the left) until they do not. Objects in `ignore`
     (e.g. a container one arm steadies while the other reaches into it) are left out of
-    that check."""
+    that check.
+
+    The check first holds the fingers as the model has them (as a rule the home opening, the
+    widest); only if no timing passes that way is it done again with each hand's fingers as
+    open as they can be at each sample (:func:`_finger_bounds`: a narrowed jaw leaving a
+    narrow place, planned that way)."""
     plans = {"left": left, "right": right}
     for side in SIDES:
         if plans[side] is None:
@@ -359,19 +383,20 @@ def merge(
     starts = {s: plans[s].q[0] for s in SIDES}
     n = max(p.num_steps for p in plans.values())
     moving = {s: bool(np.any(plans[s].q != plans[s].q[0])) for s in SIDES}
+    candidates = []
     if stretch and all(moving.values()):
-        motion = combine(plans["left"].stretched(n), plans["right"].stretched(n))
-        if _motion_free(ctx, motion, starts, ignore):
-            return motion
+        candidates.append(combine(plans["left"].stretched(n), plans["right"].stretched(n)))
     attempts = [("right", 0)] + [
         (s, d) for d in range(3, max_delay + 1, 3) for s in ("right", "left")
     ]
     for side, delay in attempts:
         trial = dict(plans)
         trial[side] = trial[side].delayed(delay)
-        motion = combine(trial["left"], trial["right"])
-        if _motion_free(ctx, motion, starts, ignore):
-            return motion
+        candidates.append(combine(trial["left"], trial["right"]))
+    for fingers in (False, True):
+        for motion in candidates:
+            if _motion_free(ctx, motion, starts, ignore, fingers=fingers):
+                return motion
     raise PlanningError(
         "arm_conflict",
         f"the arms' plans ({plans['left'].label!r}, "
@@ -379,12 +404,28 @@ def merge(
     )
 
 
+def _finger_bounds(ctx: SkillContext, motion: Motion) -> list[dict[str, float]]:
+    """Per sample of `motion`, each side's widest opening commanded over the last
+    ``ctx.gripper_steps`` samples (the fingers' full stroke takes no longer): a bound on how
+    open its fingers are there."""
+    o = motion.openings
+    w = ctx.gripper_steps
+    bounds = [o[max(0, i - w) : i + 1].max(axis=0) for i in range(len(o))]
+    return [{side: float(b[k]) for k, side in enumerate(SIDES)} for b in bounds]
+
+
 def _motion_free(
-    ctx: SkillContext, motion: Motion, starts: dict, ignore: Iterable[str] = ()
+    ctx: SkillContext,
+    motion: Motion,
+    starts: dict,
+    ignore: Iterable[str] = (),
+    *,
+    fingers: bool = False,
 ) -> bool:
     """Check a merged motion densely (MERGE_SUBSTEPS per control period): the arms against
     each other and the scene. Objects that change hands within the motion are left out;
-    their clearance to the static scene was checked when each arm's plan was made.
+    their clearance to the static scene was checked when each arm's plan was made. The
+    fingers are as the model has them, or with `fingers` at :func:`_finger_bounds`.
 
     The samples are checked first, coarse to fine (a colliding merge, as most of
     :func:`merge`'s delays are, is rejected after a few checks), then the substeps between
@@ -394,20 +435,25 @@ def _motion_free(
     steps = [i for i in range(1, motion.num_steps) if not np.array_equal(q[i - 1], q[i])]
     if not steps:
         return True
+    bounds = _finger_bounds(ctx, motion) if fingers else [None] * motion.num_steps
     between = np.linspace(0, 1, MERGE_SUBSTEPS + 1)[1:-1]
     with ctx.model.ignoring(moving):
         for k in bisection_order(len(steps) - 1).astype(int):
-            if not ctx.model.collision_free(q[steps[k]]):
+            i = steps[k]
+            if not ctx.model.collision_free(q[i], bounds[i]):
                 return False
         for i in steps:
             a, b = q[i - 1], q[i]
             for s in between:
-                if not ctx.model.collision_free(a + s * (b - a)):
+                if not ctx.model.collision_free(a + s * (b - a), bounds[i]):
                     return False
     return True
 
 
 def combine(left: ArmPlan, right: ArmPlan) -> Motion:
+    """Both plans from the same step, the shorter one holding its last sample: no collision
+    check (for plans already checked against each other, e.g. one arm's track planned with
+    the other arm where it holds)."""
     n = max(left.num_steps, right.num_steps)
     left, right = left.padded(n), right.padded(n)
     events = [(i, "left", k, o) for i, k, o in left.events]
