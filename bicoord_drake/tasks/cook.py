@@ -20,6 +20,7 @@ from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
     SkillContext,
+    combine,
     hold,
     lift,
     merge,
@@ -30,6 +31,7 @@ from bicoord_drake.planning.skills import (
     retreat,
     solve_tcp,
     toss,
+    track,
 )
 from bicoord_drake.stages import Stage, WorldState
 from bicoord_drake.stages.predicates import (
@@ -111,6 +113,8 @@ POUR_HOLD = 20
 #: Serve: how many more times the skillet is tipped while a roll is measured in it after the
 #: first tip, and the control steps kept free after a retry (lift and settle).
 SERVE_RETRIES, SERVE_RESERVE = 2, 60
+#: Serve: how high (m) the skillet is lifted after tipping (before a retry and at the end).
+SERVE_LIFT = 0.06
 SETTLE_STEPS = 10
 #: How far (m) the catcher carries the skillet away, in the order tried, when the left cannot
 #: pick a roll that bounced out beside the catcher's hand.
@@ -353,15 +357,16 @@ class Cook(Task):
             _park(ctx, in_pan)
             saved = ctx.q.copy()
             try:
-                again = _serve(ctx, "right", plate)
+                again = _serve_again(ctx, plate)
             except PlanningError:
+                ctx.q = saved
                 break  # as before: the episode ends with the roll in the pan
             if view.steps + again.num_steps + SERVE_RESERVE > self.step_limit:
                 ctx.q = saved
                 break
-            yield from run(merge(ctx, None, again))
+            yield from run(again)
         try:
-            yield from run(merge(ctx, None, lift(ctx, "right", 0.06)))
+            yield from run(merge(ctx, None, lift(ctx, "right", SERVE_LIFT)))
         except PlanningError:
             pass  # at the edge of reach: stay where the tilt ended
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
@@ -514,6 +519,37 @@ def _pick_making_room(ctx: SkillContext, roll: str) -> Motion:
         except PlanningError as err:
             reasons.append(err.reason)
     raise PlanningError("pick_failed", f"left cannot pick {roll!r} ({', '.join(reasons)})")
+
+
+def _serve_again(ctx: SkillContext, plate: np.ndarray) -> Motion:
+    """Tip the skillet over the plate again from where the last tip left it (:func:`_serve`).
+    If that cannot be planned - the tipped pan sags in its grasp and can end resting on the
+    plate's rim - it is lifted clear first (:func:`_lift_clear`). That motion is not merged:
+    only the right arm moves, its plans checked against the left where it holds, and only a
+    track may start in contact."""
+    try:
+        with ctx.transaction():
+            return merge(ctx, None, _serve(ctx, "right", plate))
+    except PlanningError:
+        pass
+    with ctx.transaction():
+        again = _lift_clear(ctx, "right", SERVE_LIFT).then(_serve(ctx, "right", plate))
+    return combine(hold(ctx, "left", 0), again)
+
+
+def _lift_clear(ctx: SkillContext, side: str, height: float) -> ArmPlan:
+    """Raise the TCP straight up by `height` (m), keeping its orientation, from a start that
+    may touch what the held skillet rests on (a track: never pressing deeper)."""
+    X = ctx.model.tcp_pose(ctx.q, side)
+    p, R = X.translation(), X.rotation()
+    return track(
+        ctx,
+        side,
+        lambda s: RigidTransform(R, p + [0.0, 0.0, s * height]),
+        height,
+        0.0,
+        label="lift clear",
+    )
 
 
 def _toss(ctx: SkillContext, aims: list[float], steep_first: bool = False) -> Motion:

@@ -321,6 +321,14 @@ def test_carry_above_stops_over_the_goal_still_holding():
     np.testing.assert_allclose(p, goal.translation() + [0, 0, 0.08], atol=0.003)
 
 
+def test_a_start_contact_is_as_deep_as_the_deepest_of_its_shapes():
+    pairs = [("gripper", "plate", -6e-4), ("gripper", "plate", -4e-4), ("finger", "table", -1e-4)]
+    assert sk.tracking.deepest_contacts(pairs) == {
+        ("gripper", "plate"): -6e-4,
+        ("finger", "table"): -1e-4,
+    }
+
+
 def test_track_may_leave_a_contact_it_starts_in_but_never_press_deeper():
     """A push can leave a finger pressed a fraction of a millimetre into the table (the
     measured state the next move starts from): tracking away from it, or along it, is allowed;

@@ -56,7 +56,7 @@ def track(
     q_other = ctx.arm_q(other)
     with ctx.model.ignoring(ignore):  # once: entering it costs a filter rebuild
         ctx.model.set_padding(ctx.clearance / 2, 0.0)
-        start = {(a, b): d for a, b, d in ctx.model.colliding_pairs(ctx.q)}
+        start = deepest_contacts(ctx.model.colliding_pairs(ctx.q))
         start_depth = -min(start.values(), default=0.0)
         if start_depth > START_CONTACT_DEPTH:
             raise PlanningError(
@@ -70,6 +70,17 @@ def track(
             raise PlanningError("path_in_collision", f"{label}: the {side} path collides")
     ctx.q = q[-1].copy()
     return ArmPlan(side, q_arm, np.full(len(q_arm), ctx.opening[side]), label=label)
+
+
+def deepest_contacts(
+    pairs: Iterable[tuple[str, str, float]],
+) -> dict[tuple[str, str], float]:
+    """(body, other) -> the smallest distance of their contacts in `pairs` (two bodies can
+    touch at several of their shapes: the deepest one bounds the pair)."""
+    out: dict[tuple[str, str], float] = {}
+    for a, b, d in pairs:
+        out[(a, b)] = min(d, out.get((a, b), np.inf))
+    return out
 
 
 def _path_free(
