@@ -125,8 +125,7 @@ class Simulation:
             spin, speed, name = max(speeds)
             message += (
                 f"; at its start {name!r} spun at {spin:.0f} rad/s and moved at {speed:.2f} m/s "
-                f"(a body spinning fast about its axis of least inertia is unstable at the "
-                f"plant's {plant.time_step():.4f} s step)"
+                f"(plant step {plant.time_step():.4f} s)"
             )
         return message
 
