@@ -376,8 +376,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         epilog=__doc__.split("\n", 2)[2],
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("--data", required=True, help="generated episodes (searched recursively)")
-    parser.add_argument("--tasks", required=True, help="comma-separated task names")
+    parser.add_argument("--data", default=".", help="generated episodes (searched recursively)")
+    parser.add_argument("--tasks", default="", help="comma-separated task names")
     parser.add_argument("--demos", type=int, default=50, help="demonstrations per task")
     parser.add_argument(
         "--policies", default="act,diffusion", help=f"comma list of {', '.join(POLICIES)}"
@@ -411,10 +411,17 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--out", required=True, help="the Markdown table to (re)write")
     parser.add_argument("--force", action="store_true", help="redo results already in --work")
     parser.add_argument(
+        "--table-only",
+        action="store_true",
+        help="only rewrite --out from the results in --work (run nothing)",
+    )
+    parser.add_argument(
         "--notes", help="a Markdown file placed between the table and the commands (analysis)"
     )
     args = parser.parse_args(argv)
     args.tasks = [t for t in args.tasks.split(",") if t]
+    if not args.tasks and not args.table_only:
+        parser.error("--tasks is required (unless --table-only)")
     args.policies = [p for p in args.policies.split(",") if p]
     unknown = sorted(set(args.policies) - set(POLICIES))
     if unknown:
@@ -445,7 +452,7 @@ def main(argv: list[str] | None = None) -> int:
         for r in previous
         if (r.get("inputs", "state"), r["demos"], r["steps"]) == key
     }
-    for task in args.tasks:
+    for task in [] if args.table_only else args.tasks:
         for result in run_task(task, args, done):
             with open(results_file, "a", encoding="utf-8") as fh:
                 fh.write(json.dumps(result) + "\n")

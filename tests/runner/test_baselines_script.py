@@ -133,3 +133,9 @@ def test_a_finished_training_is_reused_only_by_the_same_command(baselines, tmp_p
     )
     assert baselines.trained(out, train) == 12.5
     assert baselines.trained(out, ["lerobot-train", "--steps=20"]) is None
+
+
+def test_tasks_are_required_unless_only_the_table_is_rewritten(baselines):
+    with pytest.raises(SystemExit):
+        baselines.parse_args(["--work", "w", "--out", "o.md"])
+    assert baselines.parse_args(["--work", "w", "--out", "o.md", "--table-only"]).tasks == []
