@@ -235,6 +235,8 @@ def demonstrations(data: Path, task: str, count: int) -> list[Path]:
 
 def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) -> list[dict]:
     """Export, train and evaluate every policy of `args` on `task`; returns the new results."""
+    from bicoord_drake.runner.rollouts import DIVERGED
+
     work = Path(args.work) / task
     dataset = work / f"dataset_{args.inputs}_{args.demos}"
     files = demonstrations(Path(args.data), task, args.demos)
@@ -265,7 +267,7 @@ def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) ->
         stdout, eval_seconds = run(evaluate, work / "logs" / f"evaluate_{output.name}.log")
         report = json.loads(stdout)
         errors = [r["error"] for r in report["rollouts"] if r.get("error")]
-        diverged = sum(1 for e in errors if e.startswith("physics diverged"))
+        diverged = sum(1 for e in errors if e.startswith(DIVERGED))
         results.append(
             {
                 "task": task,

@@ -556,15 +556,21 @@ class PlanningModel:
         self.checker.SetPaddingMatrix(pad)
 
     @contextmanager
-    def padded(self, clearance: float, env_clearance: float) -> Iterator[None]:
-        """`set_padding` within the block; the previous padding is restored after it."""
+    def keeping_padding(self) -> Iterator[None]:
+        """The checker's padding as it is now is put back after the block, however it ends."""
         # A copy: the checker returns a live view of its padding, which set_padding overwrites.
         previous = np.array(self.checker.GetPaddingMatrix(), copy=True)
-        self.set_padding(clearance, env_clearance)
         try:
             yield
         finally:
             self.checker.SetPaddingMatrix(previous)
+
+    @contextmanager
+    def padded(self, clearance: float, env_clearance: float) -> Iterator[None]:
+        """`set_padding` within the block; the previous padding is restored after it."""
+        with self.keeping_padding():
+            self.set_padding(clearance, env_clearance)
+            yield
 
     def collision_free(self, q: np.ndarray, openings: Mapping[str, float] | None = None) -> bool:
         """Whether `q` is collision-free under the current padding (held objects included), the

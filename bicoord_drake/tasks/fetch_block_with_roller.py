@@ -366,16 +366,15 @@ def _push_steps(ctx: SkillContext) -> int:
     planned once the grasp is measured); the tracked state and the checker's padding are
     left as they were."""
     q, opening = ctx.q.copy(), dict(ctx.opening)
-    padding = np.array(ctx.model.checker.GetPaddingMatrix(), copy=True)
-    try:
-        cube_y = float(ctx.model.object_pose(CUBE).translation()[1])
-        tool = RollerTool.from_grasp(ctx)
-        start = np.array([START_X, cube_y, TABLE_TOP + PUSH_Z])
-        end = np.array([END_X, cube_y, TABLE_TOP + PUSH_Z])
-        return push_through(ctx, tool, start, end).num_steps
-    finally:
-        ctx.q, ctx.opening = q, opening
-        ctx.model.checker.SetPaddingMatrix(padding)
+    with ctx.model.keeping_padding():
+        try:
+            cube_y = float(ctx.model.object_pose(CUBE).translation()[1])
+            tool = RollerTool.from_grasp(ctx)
+            start = np.array([START_X, cube_y, TABLE_TOP + PUSH_Z])
+            end = np.array([END_X, cube_y, TABLE_TOP + PUSH_Z])
+            return push_through(ctx, tool, start, end).num_steps
+        finally:
+            ctx.q, ctx.opening = q, opening
 
 
 def nearest_first(ctx: SkillContext, side: str, grasps: list[Grasp]) -> list[Grasp]:

@@ -514,9 +514,8 @@ def _tip_steps(ctx: SkillContext) -> int:
     planned once the pan is over the bin); the tracked state and the checker's padding are
     left as they were."""
     q, opening = ctx.q.copy(), dict(ctx.opening)
-    padding = np.array(ctx.model.checker.GetPaddingMatrix(), copy=True)
-    try:
-        return tip(ctx).num_steps
-    finally:
-        ctx.q, ctx.opening = q, opening
-        ctx.model.checker.SetPaddingMatrix(padding)
+    with ctx.model.keeping_padding():
+        try:
+            return tip(ctx).num_steps
+        finally:
+            ctx.q, ctx.opening = q, opening

@@ -247,15 +247,13 @@ class SkillContext:
         """Plan inside the block only to see whether it can be planned: afterwards everything
         :meth:`transaction` restores, and the checker's padding, is put back as it was, whether
         the block raised or not."""
-        padding = np.array(self.model.checker.GetPaddingMatrix(), copy=True)
-        try:
-            with self.transaction():
-                yield
-                raise _Rehearsed
-        except _Rehearsed:
-            pass
-        finally:
-            self.model.checker.SetPaddingMatrix(padding)
+        with self.model.keeping_padding():
+            try:
+                with self.transaction():
+                    yield
+                    raise _Rehearsed
+            except _Rehearsed:
+                pass
 
     # ------------------------------------------------------------------ motions
     def edge_free(self, a: np.ndarray, b: np.ndarray) -> bool:
