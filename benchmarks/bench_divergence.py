@@ -38,6 +38,9 @@ VARIANTS: dict[str, dict] = {
     "lagged 1/180 s": {"time_step": 1 / 180},
     "lagged 1/240 s": {"time_step": 1 / 240},
     "sap 1/90 s": {"contact_approximation": "sap", "time_step": 1 / 90},
+    "sap beta 0.1": {"contact_approximation": "sap", "sap_near_rigid_threshold": 0.1},
+    "sap beta 0": {"contact_approximation": "sap", "sap_near_rigid_threshold": 0.0},
+    "lagged": {"contact_approximation": "lagged"},
 }
 
 

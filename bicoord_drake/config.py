@@ -114,11 +114,14 @@ class StationConfig(BaseModel):
     """How the simulated cell is built and driven.
 
     Defaults come from measurements on a 2-core CPU machine, judged by running every task's
-    expert in them (benchmarks/bench_expert_physics.md, benchmarks/expert_success.md): SAP's
-    solver with Drake's "lagged" approximation and hydroelastic contact holds a grasped cube
-    without pivoting; a 1/120 s step (8 per 15 Hz control period) with a 0.1 mm hydroelastic
-    margin keeps resting flat-on-flat contact steady and runs the physics about 2.9x faster
-    than the earlier SAP at 1/300 s.
+    expert in them (benchmarks/bench_expert_physics.md, benchmarks/expert_success.md): Drake's
+    SAP approximation with hydroelastic contact, a 1/120 s step (8 per 15 Hz control period) and
+    a 0.1 mm hydroelastic margin (steady resting flat-on-flat contact). SAP rather than the
+    faster "lagged": under a flailing policy's actions "lagged" met links striking links or the
+    table with forces of 10-200 kN and diverged (6 of 10 recorded Diffusion Policy streams,
+    benchmarks/bench_divergence.py), SAP stayed sane in all. The near-rigid threshold is 0: at
+    SAP's default 1.0 the softened contacts let jigsaw's pieces, collect_pens' pens and
+    divide_block_tower's cubes settle wrong.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
@@ -127,7 +130,14 @@ class StationConfig(BaseModel):
     time_step: float = Field(1 / 120, gt=0, le=0.01, description="plant time step, s")
     contact_model: Literal["hydroelastic_with_fallback", "point"] = "hydroelastic_with_fallback"
     contact_approximation: Literal["sap", "lagged", "similar", "lagrange"] = Field(
-        "lagged", description="MultibodyPlant discrete_contact_approximation (all use SAP's solver)"
+        "sap", description="MultibodyPlant discrete_contact_approximation (all use SAP's solver)"
+    )
+    sap_near_rigid_threshold: float = Field(
+        0.0,
+        ge=0,
+        le=10,
+        description="SAP's near-rigid threshold (beta): stiffer contacts are softened to stay "
+        "well conditioned; 0 = never soften",
     )
     hydroelastic_margin: float = Field(
         1e-4,

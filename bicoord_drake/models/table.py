@@ -10,6 +10,8 @@ from bicoord_drake.models.scene import TABLE_TOP
 
 TABLE_SIZE = (1.2, 0.7)
 TABLE_THICKNESS = 0.04
+#: Thickness of the floor's collision slab (m), below its visible surface.
+FLOOR_SLAB = 1.0
 
 
 def _box_visual(name: str, prim: Primitive, rgba, texture: Path | None = None) -> str:
@@ -35,6 +37,14 @@ def table_sdf(appearance: Appearance | None = None) -> str:
         pose=Pose(xyz=(0, 0, TABLE_TOP - TABLE_THICKNESS / 2)),
     )
     floor = Primitive(kind="box", size=(4.0, 4.0, 0.02), pose=Pose(xyz=(0, 0, floor_z - 0.01)))
+    # The floor collides as a thick slab: an object knocked off the table at speed (a flailing
+    # policy throws cubes at 15+ m/s, 13 cm per plant step) lands on it instead of passing
+    # through a thin one and falling for ever until its state overflows.
+    floor_slab = Primitive(
+        kind="box",
+        size=(4.0, 4.0, FLOOR_SLAB),
+        pose=Pose(xyz=(0, 0, floor_z - FLOOR_SLAB / 2)),
+    )
     rigid = ContactProps(friction=0.8, hydroelastic="rigid", resolution_hint=0.05)
     parts = [
         '<link name="table_top">',
@@ -55,7 +65,7 @@ def table_sdf(appearance: Appearance | None = None) -> str:
         )
         parts.append(_box_visual(f"leg_{i}", leg, (0.4, 0.32, 0.24, 1)))
     parts += [
-        sdf_collision("floor", floor, rigid),
+        sdf_collision("floor", floor_slab, rigid),
         _box_visual("floor", floor, (0.5, 0.5, 0.52, 1), floor_png),
         "</link>",
     ]

@@ -5,6 +5,14 @@ The action is ``[left q (n), left opening, right q (n), right opening]`` for arm
 control period the :class:`ActionInterpolator` latches the new action and, until the next period,
 moves the PD targets linearly from the previous action to it (a first-order hold). Expert and
 policies drive the robot through this one path.
+
+The targets move no faster than the servos can (each joint's ``velocity_limit``, the fingers'
+``finger_velocity_limit``): a jump in the action is followed at that speed over the next periods,
+as a position-controlled servo with a profile velocity does. The experts' plans keep within these
+limits, so only actions that ask for more (a flailing policy: targets jumping across the range
+from one period to the next, driving the joints at ten times the servos' speed into the table
+and into the other links until the contact solver threw objects at 15+ m/s and diverged) are
+slowed.
 """
 
 from __future__ import annotations
@@ -43,6 +51,14 @@ class ActionInterpolator(LeafSystem):
         size, width = layout.action_size, layout.arm_width
         self._size, self._width = size, width
         self._action = self.DeclareVectorInputPort("action", size)
+        # The largest change of each action entry per period: joint speed limits (rad/s) and the
+        # fingers' speed as a fraction of their stroke per second, with a hair of slack so that
+        # plans sampled exactly at a limit pass unchanged.
+        g = embodiment.arm.gripper
+        side_rates = [j.velocity_limit for j in embodiment.arm.joints] + [
+            g.finger_velocity_limit / (g.finger_max - g.finger_min)
+        ]
+        self._max_step = np.tile(side_rates, len(SIDES)) * control_period * (1.0 + 1e-6)
         home = embodiment.home_action()
         self._state = self.DeclareDiscreteState(np.concatenate([home, home, [0.0]]))
         self.DeclarePeriodicDiscreteUpdateEvent(control_period, 0.0, self._latch)
@@ -77,9 +93,10 @@ class ActionInterpolator(LeafSystem):
 
     def _latch(self, context: Context, discrete_state) -> None:
         x = context.get_discrete_state(self._state).get_value()
-        new = self._action.Eval(context)
+        current = x[self._size : 2 * self._size]
+        step = np.clip(self._action.Eval(context) - current, -self._max_step, self._max_step)
         discrete_state.get_mutable_vector(self._state).set_value(
-            np.concatenate([x[self._size : 2 * self._size], new, [context.get_time()]])
+            np.concatenate([current, current + step, [context.get_time()]])
         )
 
     def _desired(self, context: Context, output: BasicVector) -> None:

@@ -208,6 +208,7 @@ def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
             time_step=config.time_step,
             discrete_contact_approximation=config.contact_approximation,
             contact_model=config.contact_model,
+            sap_near_rigid_threshold=config.sap_near_rigid_threshold,
         ),
         builder,
     )

@@ -16,15 +16,16 @@ from bicoord_drake.stages.stage import WorldState
 
 @pytest.fixture(scope="module")
 def cube_on_the_left_hand():
-    """A 3 cm cube dropped onto the back of the left gripper's body (no finger near it), and a
-    cube on the table that nothing touches; the arms hold their home pose, in the default
-    physics (the gripper body is rigid-hydroelastic: the cube rests on it, where with point
-    contact under "lagged" it bounced off within a control step).
+    """A 3 cm cube set on the back of the left gripper's body (no finger near it; placed where
+    it rests, not overlapping: SAP pushes an initial overlap out hard), and a cube on the table
+    that nothing touches; the arms hold their home pose, in the default physics (the gripper
+    body is rigid-hydroelastic: the cube rests on it, where with point contact under "lagged"
+    it bounced off within a control step).
     """
     on_hand = SceneObject(
         name="on_hand",
         shape=BoxShape(size=(0.03, 0.03, 0.03)),
-        pose=Pose(xyz=(-0.25, -0.255, 1.022)),
+        pose=Pose(xyz=(-0.25, -0.265, 1.030)),
     )
     scene = Scene(name="on_hand", objects=(on_hand, cube("free", 0.1, 0.0)))
     sim = Simulation(build_station(scene, StationConfig(render=False)))

@@ -31,11 +31,19 @@ def test_pd_tracking_error_below_a_hundredth_radian_after_settling(sim):
     assert err[[0, 1, 2, 3, 4, 5, 7, 8, 9, 10, 11, 12]].max() < 0.01
 
 
+def _near(station):
+    """An action within one control period's reach of home (no joint faster than its limit)."""
+    a = station.embodiment.home_action().copy()
+    a[0:6] += [0.1, -0.15, 0.12, 0.05, -0.1, 0.2]
+    a[7:13] += [-0.1, 0.1, -0.05, 0.15, 0.08, -0.2]
+    return a
+
+
 def test_first_order_hold_moves_targets_linearly_between_actions(sim):
     sim.reset()
     st = sim.station
     home = st.embodiment.home_action()
-    a = _target(st)
+    a = _near(st)
     interp = st.interpolator
     ctx = interp.GetMyContextFromRoot(sim.context)
     sim.step(a)  # latched at t = 0: the target reaches `a` at t = 1/15
@@ -130,12 +138,44 @@ def test_target_velocity_holds_up_to_the_period_boundary(sim):
     (a zero there brakes a fast arm through the PD damping)."""
     sim.reset()
     st = sim.station
-    a = _target(st)
+    a = _near(st)
     sim.step(a)  # now exactly at the end of the first segment, before the next latch
     ctx = st.interpolator.GetMyContextFromRoot(sim.context)
     desired = st.interpolator.desired_states_output_port().Eval(ctx)[:14]
     home = st.embodiment.home_action()
     np.testing.assert_allclose(desired[7:13], (a[:6] - home[:6]) * 15.0, rtol=1e-9)
+
+
+def test_targets_follow_a_jump_no_faster_than_the_servos(sim):
+    """An action far from the current targets is followed at each joint's velocity limit (and
+    the fingers' speed), as a servo does, and reached once the time allows."""
+    sim.reset()
+    st = sim.station
+    emb = st.embodiment
+    home = emb.home_action()
+    far = _target(st)
+    far[6], far[13] = 0.0, 1.0 - home[13]  # grippers jump too
+    g = emb.arm.gripper
+    rate = np.tile(
+        [j.velocity_limit for j in emb.arm.joints]
+        + [g.finger_velocity_limit / (g.finger_max - g.finger_min)],
+        2,
+    )
+    period = st.config.control_period
+    ctx = st.interpolator.GetMyContextFromRoot(sim.context)
+    latched = home.copy()
+    for k in range(1, 20):
+        sim.step(far)
+        state = ctx.get_discrete_state(0).get_value()
+        now = state[14:28].copy()  # the target the segment ends at
+        assert np.all(np.abs(now - latched) <= rate * period * (1 + 1e-5))
+        expected = latched + np.clip(far - latched, -rate * period, rate * period)
+        np.testing.assert_allclose(now, expected, atol=1e-6, err_msg=f"period {k}")
+        latched = now
+    np.testing.assert_allclose(latched, far, atol=1e-12)  # reached within 19 periods
+    # the joints moved no faster than the servos (within the PD's small overshoot)
+    v = sim.station.plant.GetVelocities(sim.plant_context)
+    assert np.abs(v[: 2 * len(emb.arm.joints)]).max() < 1.5 * max(rate[:6])
 
 
 def test_contact_approximation_is_the_plants():
@@ -147,6 +187,7 @@ def test_contact_approximation_is_the_plants():
         demo_scene("cubes"), StationConfig(render=False, contact_approximation="sap")
     )
     assert sap.plant.get_discrete_contact_approximation().name == "kSap"
+    assert sap.plant.get_sap_near_rigid_threshold() == StationConfig().sap_near_rigid_threshold
     with pytest.raises(ValidationError, match="contact_approximation"):
         StationConfig(contact_approximation="tamsi")
 
