@@ -100,6 +100,16 @@ ALIGN_XY = 0.05  # lip within this of the catching bowl's axis (xy)
 ALIGN_Z = (0.03, 0.10)  # lip this high above the catching bowl's rim
 ALIGN_TILT = np.radians(8)  # both bowls this level
 SETTLE_STEPS = 6
+#: Setting the bowls down (stage 3). Under SAP a light compound bowl standing on the table,
+#: once knocked into rocking at a few rad/s, rocks higher instead of settling (an empty bowl
+#: given 3 rad/s and a 1 mm drop bounces and turns over), and the inner fingertip hovering
+#: 3 mm over the pouring bowl's base catches it (lifted, tilted, still touched after the
+#: back-off); the release must not start the rocking. Each bowl is lowered until it stands on
+#: the table (not 2 mm above it, where the loosening grip let it pivot and drop), the arm
+#: holds still while its servos catch up with the lowering, and the gripper opens slowly.
+SET_DOWN = 0.0  # bowl bottom above the table at the release, m
+HOLD_BEFORE_RELEASE = 4  # control steps held still, gripper closed, before opening
+RELEASE_STEPS = 10  # control steps over which the gripper opens
 BOWL_COLORS = {
     "white": (0.92, 0.92, 0.88, 1.0),
     "blue": (0.35, 0.55, 0.85, 1.0),
@@ -285,8 +295,20 @@ class HandoverBlockWithBowls(Task):
             # lip above it; only when the measured rims are aligned does left tilt.
             yield from _meet_and_pour(ctx, view, run)
             # ---- stage 3: left puts its empty bowl back, right sets its bowl on the target
-            left = place(ctx, "left", table_target(left_xy, scene.object("pour_bowl").shape))
-            right = place(ctx, "right", table_target(target_xy, CATCH_BOWL))
+            left = place(
+                ctx,
+                "left",
+                table_target(left_xy, scene.object("pour_bowl").shape, clearance=SET_DOWN),
+                release_steps=RELEASE_STEPS,
+                settle_steps=HOLD_BEFORE_RELEASE,
+            )
+            right = place(
+                ctx,
+                "right",
+                table_target(target_xy, CATCH_BOWL, clearance=SET_DOWN),
+                release_steps=RELEASE_STEPS,
+                settle_steps=HOLD_BEFORE_RELEASE,
+            )
             yield from run(merge(ctx, left, right))
             final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
             yield from final.actions()

@@ -31,7 +31,7 @@ from bicoord_drake.planning.grasps import (
 )
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.skills.arm import grip, move, move_tcp, solve_tcp, tcp_deviation
-from bicoord_drake.planning.skills.core import ArmPlan, SkillContext
+from bicoord_drake.planning.skills.core import ArmPlan, SkillContext, hold
 
 #: Grasp candidates tried per pick before giving up.
 MAX_GRASP_TRIES = 6
@@ -172,13 +172,16 @@ def place(
     opening: float = 1.0,
     release_steps: int | None = None,
     yaws: Sequence[float] | None = None,
+    settle_steps: int = 0,
 ) -> ArmPlan:
     """Carry the held object above `X_WO_goal`, lower it there, release and back off.
 
     The object's symmetric yaws about the goal (or `yaws`, rad) are tried, most natural
     first. The gripper opens to `opening` (less than 1 inside a container, so the fingers miss
     its walls), over `release_steps` control steps if given (a slow release for a light object
-    set on a small support, which a fast one can flick off)."""
+    set on a small support, which a fast one can flick off). With `settle_steps` the arm holds
+    still that many steps, gripper closed, between lowering and releasing (the arm's servos
+    catch up with the end of the lowering before the fingers let go)."""
     held = ctx.model.held.get(side)
     if held is None:
         raise PlanningError("gripper_empty", f"{side} holds nothing to place")
@@ -217,6 +220,7 @@ def place(
             ignore,
             opening,
             release_steps,
+            settle_steps,
         )
     raise PlanningError(
         "place_failed",
@@ -330,9 +334,12 @@ def _place_moves(
     ignore,
     opening=1.0,
     release_steps=None,
+    settle_steps=0,
 ) -> ArmPlan:
     carry = move(ctx, side, q_above, label="carry", ignore=ignore)
     lower = move(ctx, side, q_place, label="lower", ignore=ignore + [name], straight=True)
+    if settle_steps > 0:
+        lower = lower.then(hold(ctx, side, settle_steps, label="settle"))
     release = grip(ctx, side, opening, label="release", ramp_steps=release_steps)
     ctx.model.detach(side, X_WO=X_WO)
     back = move(ctx, side, q_away, label="back off", ignore=ignore + [name], straight=True)
