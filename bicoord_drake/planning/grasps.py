@@ -57,6 +57,9 @@ Shape = BoxShape | CylinderShape | SphereShape | BowlShape
 _UP = np.array([0.0, 0.0, 1.0])
 #: Middle of the two ALOHA arm bases; the default reference for scoring.
 DEFAULT_BASE = np.array([0.0, -0.42, TABLE_TOP])
+#: Rim grasps with ``GraspParams.rim_floor``: the least height (m) of wall between the pads.
+MIN_RIM_OVERLAP = 0.008
+
 _PRIOR: dict[str, float] = {"top": 1.0, "rim": 1.0, "handle": 1.0, "side": 0.0}
 
 
@@ -72,6 +75,10 @@ class GraspParams:
     depth: float | None = None  # top grasps: TCP below the top face; None = pads flush with it
     rim_depth: float = 0.003  # rim grasps: pad top this far below the rim
     rim_lean: bool = False  # rim grasps: approach along a flared wall, pads flat on it
+    #: rim grasps: if set, the fingertips also stay this far above the bowl's floor (the top
+    #: of its base, `wall` up), the pads standing above the rim if need be (at least
+    #: MIN_RIM_OVERLAP of wall between them)
+    rim_floor: float | None = None
     n_yaw: int = 8  # samples around round shapes
     allow_from_below: bool = False  # keep approaches that point upward
 
@@ -376,7 +383,8 @@ def bowl_rim_grasps(
     wall radially. The pads sit `rim_depth` below the rim; since the wall leans outward, the TCP
     follows the wall's mid-surface at the pads' height and the width covers the lean over the pad
     length. With ``params.rim_lean`` the approach runs down the wall's slant instead (tipped
-    outward by the wall's lean), so the pads lie flat on the wall and hold it upright.
+    outward by the wall's lean), so the pads lie flat on the wall and hold it upright. With
+    ``params.rim_floor`` the fingertips stay that far above the floor, the pads higher if need be.
     """
     R = X_WO.rotation().matrix()
     o = X_WO.translation()
@@ -386,7 +394,14 @@ def bowl_rim_grasps(
     tilt = float(np.arctan2(shape.radius - shape.base_radius, h))
     pad = gripper.pad_length
     depth = min(params.rim_depth + pad / 2, h - pad / 2 - params.tip_clearance)
-    if depth <= 0:
+    if params.rim_floor is not None:
+        # The inside finger's tip clears the floor (a tip pressed into the base holds the
+        # bowl by that tip, not the pads by the wall, and can carry it off after the release);
+        # in a bowl shallower than the pads they then stand above the rim.
+        depth = min(depth, h - shape.wall - params.rim_floor - pad / 2)
+        if depth + pad / 2 < MIN_RIM_OVERLAP:
+            return []
+    elif depth <= 0:
         return []
     z = h - depth
     # Mid-surface of the wall: radius - wall/2 at the rim, leaning in by tan(tilt) per metre down.

@@ -24,6 +24,7 @@ from bicoord_drake.planning.grasps import (
     GraspParams,
     arm_base,
     cylinder_grasps,
+    grasp_candidates,
     stack_target,
     table_target,
 )
@@ -37,7 +38,7 @@ from bicoord_drake.planning.skills import (
     place,
     retreat,
 )
-from bicoord_drake.planning.skills.pick_place import carry_margin
+from bicoord_drake.planning.skills.pick_place import carry_margin, hand_params
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     Predicate,
@@ -68,6 +69,15 @@ PLATE_MASS = 0.10
 #: (the walls stand on it); 3 cm instead of the default 1 cm makes it cheaper
 #: (benchmarks/bench_plate_physics.md).
 PLATE_RESOLUTION = 0.03
+#: Rim grasp of a plate: its fingertips stay this far (m) above the plate's floor (the top of
+#: its 12 mm base), so the 35 mm pads hold the 18 mm of wall above the base (standing above the
+#: rim) and never press on the base. With the pads' top 3 mm below the rim, as for a deep bowl,
+#: the inside fingertip pressed into the base: the jaw stopped half open on it (the plate hung
+#: on that tip) and, under SAP contact, the tip still carried the plate off when the open hand
+#: backed off after laying it down. 1 mm (17 mm of wall between the pads; 5 mm tipped the plate
+#: up to 40 deg in the hand on seed 6): the closed jaw squeezes the wall lightly (the ViperX's
+#: about 6 N), so what resists the plate's tipping is the height of wall it holds.
+PLATE_TIP_CLEARANCE = 0.001
 #: A cup: 7 cm across, 8 cm high, straight 12 mm wall, picked across its outside at the rim.
 CUP = BowlShape(
     radius=0.035, base_radius=0.035, height=0.08, wall=0.012, segments=12, walls_on_base=True
@@ -273,7 +283,7 @@ class PlacePlateAndCup(Task):
             return pick(ctx, "right", name, grasps=cup_grasps(ctx, "right", name))
 
         # ---- stage 1: left picks plate 1 by its rim, right picks cup 1
-        left = pick(ctx, "left", plates[0], kinds=["rim"])
+        left = pick(ctx, "left", plates[0], grasps=plate_grasps(ctx, "left", plates[0]))
         right = pick_cup(cups[0])
         yield from run(merge(ctx, left, right))
         # ---- stage 2: left lays plate 1 on target 1, right holds cup 1 over it; then right
@@ -283,7 +293,7 @@ class PlacePlateAndCup(Task):
         yield from run(merge(ctx, left, right))
         # (left is planned first: it leaves the plate, so the cup's descent plans around
         # where it goes; merge() delays the cup while the two would meet)
-        left = pick(ctx, "left", plates[1], kinds=["rim"])
+        left = pick(ctx, "left", plates[1], grasps=plate_grasps(ctx, "left", plates[1]))
         right = place(ctx, "right", cup_goal(plates[0]))
         yield from run(merge(ctx, left, right))
         # ---- stage 3: left carries plate 2 over target 2 while right picks cup 2
@@ -304,6 +314,20 @@ class PlacePlateAndCup(Task):
 
 
 # -------------------------------------------------------------------- expert helpers
+def plate_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
+    """Rim grasps of a plate, best first, the fingertips PLATE_TIP_CLEARANCE above its floor
+    (the pads on the wall above the base, not on the base)."""
+    params = hand_params(ctx, GraspParams(rim_floor=PLATE_TIP_CLEARANCE))
+    return grasp_candidates(
+        ctx.model.object(name),
+        ctx.model.embodiment.arm.gripper,
+        X_WO=ctx.model.object_pose(name),
+        base=arm_base(ctx.model.embodiment, side),
+        kinds=("rim",),
+        params=params,
+    )
+
+
 def cup_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
     """Top-down grasps of an upright cup across its outside, pads on the outer wall from the
     rim down (a rim grasp puts a finger inside the cup, which caught the inner wall and

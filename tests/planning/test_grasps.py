@@ -276,6 +276,31 @@ def test_leaning_rim_grasp_lies_flat_on_a_flared_wall(gripper):
     assert bowl_rim_grasps(X_WO, thin, gripper, params=GraspParams(rim_lean=True)) == []
 
 
+def test_rim_grasp_of_a_shallow_dish_keeps_the_fingertips_off_its_floor(gripper):
+    # a dish shallower than the pads: by default the pads' top sits 3 mm below the rim and the
+    # inside fingertip reaches down into the base; with rim_floor it stays above the floor
+    shape = BowlShape(radius=0.075, base_radius=0.075, height=0.03, wall=0.012, segments=12)
+    X_WO = RigidTransform([0.0, 0.0, TABLE_TOP])
+    half_pad = gripper.pad_length / 2
+    tips = [g.X_WG.translation()[2] - half_pad for g in bowl_rim_grasps(X_WO, shape, gripper)]
+    assert min(tips) < TABLE_TOP + shape.wall
+    params = GraspParams(rim_floor=0.005)
+    grasps = bowl_rim_grasps(X_WO, shape, gripper, params=params)
+    assert_common(grasps, gripper, params)
+    for g in grasps:
+        tcp = g.X_WG.translation()
+        assert tcp[2] - half_pad == pytest.approx(TABLE_TOP + shape.wall + 0.005)
+        assert tcp[2] > TABLE_TOP + shape.height  # the pads stand above the rim
+    # a deep bowl keeps its pads rim_depth below the rim
+    deep = BowlShape(radius=0.07, base_radius=0.07, height=0.08, wall=0.006)
+    for g in bowl_rim_grasps(X_WO, deep, gripper, params=params):
+        below_rim = TABLE_TOP + deep.height - g.X_WG.translation()[2]
+        assert below_rim == pytest.approx(params.rim_depth + half_pad)
+    # too little wall above the floor for the pads: no grasp
+    flat = BowlShape(radius=0.075, base_radius=0.075, height=0.02, wall=0.012)
+    assert bowl_rim_grasps(X_WO, flat, gripper, params=params) == []
+
+
 # --------------------------------------------------------------------------------------------
 # Handles
 # --------------------------------------------------------------------------------------------
