@@ -66,6 +66,12 @@ VARIANTS: dict[str, dict] = {
         "hydroelastic_margin": 1e-4,
         "sap_near_rigid_threshold": 0.1,
     },
+    "sap 1/120 s + margin beta 0.5": {
+        "contact_approximation": "sap",
+        "time_step": 1 / 120,
+        "hydroelastic_margin": 1e-4,
+        "sap_near_rigid_threshold": 0.5,
+    },
     "sap 1/120 s + margin beta 0": {
         "contact_approximation": "sap",
         "time_step": 1 / 120,

@@ -136,13 +136,27 @@ class BinShape(_Shape):
 
     kind: Literal["bin"] = "bin"
     size: tuple[float, float, float] = Field(description="outer x, y, z, m")
-    wall: float = Field(0.006, gt=0, description="wall and floor thickness, m")
+    wall: float = Field(0.006, gt=0, description="wall thickness (and floor, unless given), m")
+    floor: float | None = Field(
+        None,
+        gt=0,
+        description="floor thickness, m (default: `wall`); a static bin standing on "
+        "the table may have a solid base, which a dropped object cannot pass in one plant step",
+    )
 
     @model_validator(mode="after")
     def _walls_fit(self) -> BinShape:
-        if min(self.size[:2]) <= 2 * self.wall or self.size[2] <= self.wall:
-            raise ValueError(f"bin size {self.size} leaves no room inside walls of {self.wall} m")
+        if min(self.size[:2]) <= 2 * self.wall or self.size[2] <= self.floor_thickness:
+            raise ValueError(
+                f"bin size {self.size} leaves no room inside walls of {self.wall} m and a floor "
+                f"of {self.floor_thickness} m"
+            )
         return self
+
+    @property
+    def floor_thickness(self) -> float:
+        """The floor slab's thickness, m."""
+        return self.wall if self.floor is None else self.floor
 
     @property
     def inner_half(self) -> tuple[float, float]:
@@ -151,17 +165,17 @@ class BinShape(_Shape):
 
     def primitives(self) -> list[Primitive]:
         sx, sy, h = self.size
-        w = self.wall
-        zc = w + (h - w) / 2  # wall slabs stand on the floor slab
+        w, f = self.wall, self.floor_thickness
+        zc = f + (h - f) / 2  # wall slabs stand on the floor slab
         return [
-            Primitive(kind="box", size=(sx, sy, w), pose=Pose(xyz=(0.0, 0.0, w / 2))),
-            Primitive(kind="box", size=(w, sy, h - w), pose=Pose(xyz=(sx / 2 - w / 2, 0.0, zc))),
-            Primitive(kind="box", size=(w, sy, h - w), pose=Pose(xyz=(w / 2 - sx / 2, 0.0, zc))),
+            Primitive(kind="box", size=(sx, sy, f), pose=Pose(xyz=(0.0, 0.0, f / 2))),
+            Primitive(kind="box", size=(w, sy, h - f), pose=Pose(xyz=(sx / 2 - w / 2, 0.0, zc))),
+            Primitive(kind="box", size=(w, sy, h - f), pose=Pose(xyz=(w / 2 - sx / 2, 0.0, zc))),
             Primitive(
-                kind="box", size=(sx - 2 * w, w, h - w), pose=Pose(xyz=(0.0, sy / 2 - w / 2, zc))
+                kind="box", size=(sx - 2 * w, w, h - f), pose=Pose(xyz=(0.0, sy / 2 - w / 2, zc))
             ),
             Primitive(
-                kind="box", size=(sx - 2 * w, w, h - w), pose=Pose(xyz=(0.0, w / 2 - sy / 2, zc))
+                kind="box", size=(sx - 2 * w, w, h - f), pose=Pose(xyz=(0.0, w / 2 - sy / 2, zc))
             ),
         ]
 

@@ -312,7 +312,9 @@ def cavity_of(shape: Shape) -> Cavity:
     wall, floor and rim; a :class:`BinShape`'s inner box above its floor. Other shapes
     (compounds, boxes) are containers only with an explicit :class:`Cavity`."""
     if isinstance(shape, BinShape):
-        return Cavity(kind="box", floor=shape.wall, rim=shape.size[2], half_xy=shape.inner_half)
+        return Cavity(
+            kind="box", floor=shape.floor_thickness, rim=shape.size[2], half_xy=shape.inner_half
+        )
     if isinstance(shape, PotShape):
         inner = shape.radius - shape.wall
         return Cavity(

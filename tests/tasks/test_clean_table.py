@@ -88,7 +88,11 @@ def _in_bin(k: int, scene) -> np.ndarray:
     shape = scene.object(name).shape
     dx = (-1) ** k * 0.04
     dy = 0.03 if k < 2 else -0.03
-    z = TABLE_TOP + ct.BIN.wall + (shape.size[2] / 2 if isinstance(shape, BoxShape) else 0.0)
+    z = (
+        TABLE_TOP
+        + ct.BIN.floor_thickness
+        + (shape.size[2] / 2 if isinstance(shape, BoxShape) else 0.0)
+    )
     return np.array([ct.BIN_XY[0] + dx, ct.BIN_XY[1] + dy, z, 1.0, 0, 0, 0])
 
 
@@ -98,7 +102,7 @@ def test_an_object_in_the_bin_counts_and_one_beside_or_on_the_rim_does_not(scene
     # beside the bin, on the table
     beside = _in_bin(0, scene).copy()
     beside[0] = ct.BIN_XY[0] - ct.BIN.size[0] / 2 - 0.05
-    beside[2] -= ct.BIN.wall
+    beside[2] -= ct.BIN.floor_thickness
     assert not one(state_with(scene, {O1: beside}))
     # lying across the rim: centre over the wall, above the rim
     rim = _in_bin(0, scene).copy()
@@ -129,10 +133,12 @@ def test_a_tilted_loaf_leaning_in_the_bin_counts_but_not_beside_it(scene):
     real solid. Moved beside the bin onto the table, the same pose is not inside."""
     assert scene.draws["kinds"][3] == "bread"
     quat = np.array([0.406, 0.808, -0.244, -0.35])
-    pose = np.r_[0.007, -0.078, 0.799, quat / np.linalg.norm(quat)]
+    # (recorded on the bin's former 6 mm floor: raised onto the solid base's top)
+    pose = np.r_[0.007, -0.078, 0.799 + ct.BIN.floor_thickness - 0.006, quat / np.linalg.norm(quat)]
     st = state_with(scene, {O4: pose})
-    assert world_corners(st, O4)[:, 2].min() < TABLE_TOP  # the box corner: below the table
-    assert world_hull_points(st, O4)[:, 2].min() > TABLE_TOP + ct.BIN.wall - 0.002
+    floor = TABLE_TOP + ct.BIN.floor_thickness
+    assert world_corners(st, O4)[:, 2].min() < floor  # the box corner: below the bin's floor
+    assert world_hull_points(st, O4)[:, 2].min() > TABLE_TOP + ct.BIN.floor_thickness - 0.002
     assert ct.in_bin(O4)(st)
     drop = world_hull_points(st, O4)[:, 2].min() - TABLE_TOP
     beside = pose.copy()
@@ -168,7 +174,7 @@ def test_last_stage_needs_all_four_released_and_at_rest(task, scene):
     assert not after(last, moving)
     # toppled inside the bin still counts (a bin holds objects any way up)
     lo, _ = local_bounds(scene.object(O2).shape)
-    floor = TABLE_TOP + ct.BIN.wall
+    floor = TABLE_TOP + ct.BIN.floor_thickness
     tipped = {**four, O2: np.r_[four[O2][:2], floor - lo[1] + 0.001, quat_about("x", np.pi / 2)]}
     assert after(last, state_with(scene, tipped))
 
