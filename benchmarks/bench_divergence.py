@@ -48,10 +48,7 @@ def servo_limited(actions: np.ndarray, embodiment, start: np.ndarray, period: fl
     """`actions` as targets that move no faster than the servos: each step's change clipped to
     the joint velocity limits and the fingers' speed (as a fraction of the stroke) times the
     control period, starting from the action `start`."""
-    g = embodiment.arm.gripper
-    side = [j.velocity_limit for j in embodiment.arm.joints]
-    side.append(g.finger_velocity_limit / (g.finger_max - g.finger_min))
-    max_step = np.tile(side, 2) * period
+    max_step = embodiment.action_speed_limits() * period
     out, current = np.empty_like(actions), np.asarray(start, dtype=float)
     for k, a in enumerate(actions):
         current = current + np.clip(a - current, -max_step, max_step)

@@ -140,6 +140,11 @@ class GripperSpec(BaseModel):
         """Opening command in [0, 1] -> finger joint position (half the jaw gap)."""
         return self.finger_min + np.clip(opening, 0.0, 1.0) * (self.finger_max - self.finger_min)
 
+    @property
+    def opening_rate(self) -> float:
+        """The fastest change of the opening the finger speed allows (opening units per s)."""
+        return self.finger_velocity_limit / (self.finger_max - self.finger_min)
+
     def opening(self, finger_position: float | np.ndarray) -> float | np.ndarray:
         """Finger joint position -> opening in [0, 1] (not clipped: a blocked finger reads > 0)."""
         return (finger_position - self.finger_min) / (self.finger_max - self.finger_min)
@@ -281,6 +286,12 @@ class Embodiment(BaseModel):
         n arm joints: 14 for the ViperX pair) holding both arms at home."""
         q = list(self.home) + [self.home_opening]
         return np.array(q + q, dtype=float)
+
+    def action_speed_limits(self) -> np.ndarray:
+        """The fastest each action entry may change (per s), in the action's layout: each
+        joint's velocity limit (rad/s) and the gripper's opening rate."""
+        side = [j.velocity_limit for j in self.arm.joints] + [self.arm.gripper.opening_rate]
+        return np.array(side + side, dtype=float)
 
 
 # --------------------------------------------------------------------------------------------

@@ -616,7 +616,7 @@ def _steps_at_least(t: float, dt: float) -> int:
 
 def opening_rate(gripper: GripperSpec) -> float:
     """The fastest opening change the finger velocity limit allows (opening units per second)."""
-    return gripper.finger_velocity_limit / (gripper.finger_max - gripper.finger_min)
+    return gripper.opening_rate
 
 
 def gripper_schedule(

@@ -51,14 +51,9 @@ class ActionInterpolator(LeafSystem):
         size, width = layout.action_size, layout.arm_width
         self._size, self._width = size, width
         self._action = self.DeclareVectorInputPort("action", size)
-        # The largest change of each action entry per period: joint speed limits (rad/s) and the
-        # fingers' speed as a fraction of their stroke per second, with a hair of slack so that
+        # The largest change of each action entry per period, with a hair of slack so that
         # plans sampled exactly at a limit pass unchanged.
-        g = embodiment.arm.gripper
-        side_rates = [j.velocity_limit for j in embodiment.arm.joints] + [
-            g.finger_velocity_limit / (g.finger_max - g.finger_min)
-        ]
-        self._max_step = np.tile(side_rates, len(SIDES)) * control_period * (1.0 + 1e-6)
+        self._max_step = embodiment.action_speed_limits() * control_period * (1.0 + 1e-6)
         home = embodiment.home_action()
         self._state = self.DeclareDiscreteState(np.concatenate([home, home, [0.0]]))
         self.DeclarePeriodicDiscreteUpdateEvent(control_period, 0.0, self._latch)

@@ -185,7 +185,7 @@ def _toss(
     half = half_extent(shape, held.X_GO.rotation(), [0, 1, 0])
     opening[r + 1] = float(np.clip(gripper.opening(half + RELEASE_GAP), 0, 1))
     # then fully open, as fast as the fingers move (the object has left them)
-    per_step = gripper.finger_velocity_limit / (gripper.finger_max - gripper.finger_min) * ctx.dt
+    per_step = gripper.opening_rate * ctx.dt
     ramp = opening[r + 1] + per_step * np.arange(1, n - r - 1)
     opening[r + 2 :] = np.minimum(ramp, 1.0)
     throw_motion = ctx.motion_of(plan.trajectory, "throw and catch", 0.0)
