@@ -140,7 +140,7 @@ class ProcessBackend(Backend):
         self._pool = self._new_pool()
 
     def _new_pool(self) -> ProcessPoolExecutor:
-        threads = str(max(1, (os.cpu_count() or 1) // self.slots))
+        threads = rasterizer_threads(os.cpu_count() or 1, self.slots)
         return ProcessPoolExecutor(
             max_workers=self.slots,
             mp_context=get_context("spawn"),
@@ -177,8 +177,17 @@ class ProcessBackend(Backend):
         return f"local ({self.slots} processes)"
 
 
+def rasterizer_threads(cores: int, workers: int) -> str:
+    """Mesa llvmpipe's LP_NUM_THREADS for each of `workers` processes on `cores` cores.
+
+    Left alone, llvmpipe starts one rasterizer thread per core in every worker. A worker with a
+    core of its own rasterizes in its own thread ("0"): 12-16 % less time per frame than one
+    separate rasterizer thread (benchmarks/bench_render_threads.md)."""
+    share = cores // max(1, workers)
+    return "0" if share <= 1 else str(share)
+
+
 def _init_process(threads: str, verbose: bool) -> None:
-    # Mesa's software renderer otherwise starts one thread per core in every worker.
     os.environ["LP_NUM_THREADS"] = threads
     if not verbose:
         # Spawned workers share the terminal: keep warnings of imports and solvers off it.
@@ -212,7 +221,7 @@ class RayBackend(Backend):
                 address=address or "local",  # None could join a cluster found on this node
                 log_to_driver=verbose,
                 logging_level=logging.INFO if verbose else logging.ERROR,
-                runtime_env={"env_vars": {"LP_NUM_THREADS": "1"}},
+                runtime_env={"env_vars": {"LP_NUM_THREADS": rasterizer_threads(1, 1)}},
                 **options,
             )
             self._started = True

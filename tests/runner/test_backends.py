@@ -12,6 +12,7 @@ from bicoord_drake.runner.backends import (
     RayBackend,
     WorkerLost,
     make_backend,
+    rasterizer_threads,
 )
 
 
@@ -100,3 +101,9 @@ def test_ray_retries_a_job_whose_worker_is_killed(ray_backend, tmp_path):
     pid = ray_backend.result(ray_backend.wait([job]))
     assert pid != first
     assert [int(p) for p in marker.read_text().split()] == [first, pid]
+
+
+def test_a_worker_with_one_core_rasterizes_in_its_own_thread():
+    assert rasterizer_threads(cores=2, workers=2) == "0"
+    assert rasterizer_threads(cores=2, workers=4) == "0"
+    assert rasterizer_threads(cores=8, workers=2) == "4"
