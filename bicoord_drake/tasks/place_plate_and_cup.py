@@ -318,7 +318,8 @@ def set_cup(ctx: SkillContext, left: ArmPlan, X_WO_goal: RigidTransform) -> Moti
     released. A merged motion leaves out of its arm-against-arm check every object released
     or picked in it, so a whole place (it releases the cup) beside the left's motion would not
     see the held cup: the left's wrist, leaving the plate, swept through the cup the right
-    was bringing over it and knocked it out of the hand (seeds 10, 11, 19, 28, 29). Carried
+    was bringing over it and knocked it out of the hand (seeds 10, 11, 19, 28, 29; on seed 23
+    it came to lean on the right's fingers, and the next pick started in collision). Carried
     still held, the cup is checked with the right hand, and merge() delays it until the left
     is clear; the lowering runs after the left is done."""
     both = merge(ctx, left, carry_above(ctx, "right", X_WO_goal))
