@@ -30,6 +30,7 @@ from bicoord_drake.planning.grasps import (
 )
 from bicoord_drake.planning.skills import (
     ArmPlan,
+    Motion,
     SkillContext,
     carry_above,
     hold,
@@ -294,8 +295,7 @@ class PlacePlateAndCup(Task):
         # (left is planned first: it leaves the plate, so the cup's descent plans around
         # where it goes; merge() delays the cup while the two would meet)
         left = pick(ctx, "left", plates[1], grasps=plate_grasps(ctx, "left", plates[1]))
-        right = place(ctx, "right", cup_goal(plates[0]))
-        yield from run(merge(ctx, left, right))
+        yield from run(set_cup(ctx, left, cup_goal(plates[0])))
         # ---- stage 3: left carries plate 2 over target 2 while right picks cup 2
         # (right is planned first: it leaves plate 1 for its own side, out of the left arm's
         # way across the table)
@@ -306,14 +306,26 @@ class PlacePlateAndCup(Task):
         left = place(ctx, "left", plate_goal(targets[1]))
         right = hover(targets[1])
         yield from run(merge(ctx, left, right))
-        left = retreat(ctx, "left")
-        right = place(ctx, "right", cup_goal(plates[1]))
-        yield from run(merge(ctx, left, right))
+        yield from run(set_cup(ctx, retreat(ctx, "left"), cup_goal(plates[1])))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
 
 # -------------------------------------------------------------------- expert helpers
+def set_cup(ctx: SkillContext, left: ArmPlan, X_WO_goal: RigidTransform) -> Motion:
+    """The right arm sets its cup at `X_WO_goal` while the left does `left` (leaving the
+    plate): the cup is carried above its goal in the same motion as `left`, then lowered and
+    released. A merged motion leaves out of its arm-against-arm check every object released
+    or picked in it, so a whole place (it releases the cup) beside the left's motion would not
+    see the held cup: the left's wrist, leaving the plate, swept through the cup the right
+    was bringing over it and knocked it out of the hand (seeds 10, 11, 19, 28, 29; on seed 23
+    it came to lean on the right's fingers, and the next pick started in collision). Carried
+    still held, the cup is checked with the right hand, and merge() delays it until the left
+    is clear; the lowering runs after the left is done."""
+    both = merge(ctx, left, carry_above(ctx, "right", X_WO_goal))
+    return both.then(merge(ctx, None, place(ctx, "right", X_WO_goal)))
+
+
 def plate_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
     """Rim grasps of a plate, best first, the fingertips PLATE_TIP_CLEARANCE above its floor
     (the pads on the wall above the base, not on the base)."""
