@@ -22,6 +22,10 @@ from pydantic import (
 )
 
 CAMERA_NAMES = ("head_camera", "left_camera", "right_camera")
+#: The ``kind`` of every task-object shape (:data:`bicoord_drake.models.objects.Shape`).
+ObjectKind = Literal[
+    "box", "cylinder", "sphere", "bowl", "bin", "pot", "compound", "mug", "pen", "tool"
+]
 CameraName = Literal["head_camera", "left_camera", "right_camera"]
 
 
@@ -145,6 +149,13 @@ class StationConfig(BaseModel):
         le=0.005,
         description="hydroelastic contact margin, m (steadies flat-on-flat resting contact at "
         "large time steps; 0 = Drake's default)",
+    )
+    rigid_object_kinds: tuple[ObjectKind, ...] = Field(
+        (),
+        description="shape kinds of the task objects made rigid-hydroelastic instead of "
+        "compliant (e.g. ('bowl', 'pot')); the finger pads stay compliant, so a grasp still "
+        "presses a pressure field, and rigid-rigid pairs (object on table, bowl in bowl) fall "
+        "back to point contact",
     )
     control_rate: float = Field(15.0, gt=0, le=1000, description="control/recording rate, Hz")
     gravity_compensation: bool = True

@@ -184,8 +184,11 @@ class SceneObject(BaseModel):
     )
 
 
-def object_sdf(obj: SceneObject) -> str:
-    """SDFormat for one scene object (a single body named after the object)."""
+def object_sdf(obj: SceneObject, rigid: bool = False) -> str:
+    """SDFormat for one scene object (a single body named after the object).
+
+    A free object is compliant-hydroelastic (its ``hydroelastic_modulus``) unless `rigid`
+    (``StationConfig.rigid_object_kinds``); a fixed one is always rigid-hydroelastic."""
     prims = obj.shape.primitives()
     mesh = obj.shape.visual_mesh()
     hint = obj.resolution_hint or _resolution_hint(obj.shape)
@@ -198,6 +201,8 @@ def object_sdf(obj: SceneObject) -> str:
     )
     if obj.fixed:
         props = ContactProps(friction=obj.friction, hydroelastic="rigid", resolution_hint=hint)
+    elif rigid:
+        props = props.model_copy(update={"hydroelastic": "rigid"})
     mass, com, inertia = inertial_of(prims, obj.mass)
     body = [f'<link name="{obj.name}">', sdf_inertial(mass, com, inertia)]
     if obj.collide:
