@@ -188,7 +188,8 @@ def object_sdf(obj: SceneObject, rigid: bool = False) -> str:
     """SDFormat for one scene object (a single body named after the object).
 
     A free object is compliant-hydroelastic (its ``hydroelastic_modulus``) unless `rigid`
-    (``StationConfig.rigid_object_kinds``); a fixed one is always rigid-hydroelastic."""
+    (``StationConfig.rigid_object_kinds``): then every part but the shape's ``base_parts()``
+    is rigid-hydroelastic. A fixed object is always rigid-hydroelastic."""
     prims = obj.shape.primitives()
     mesh = obj.shape.visual_mesh()
     hint = obj.resolution_hint or _resolution_hint(obj.shape)
@@ -199,14 +200,21 @@ def object_sdf(obj: SceneObject, rigid: bool = False) -> str:
         resolution_hint=hint,
         dissipation=3.0,
     )
+    part_props = [props] * len(prims)
     if obj.fixed:
-        props = ContactProps(friction=obj.friction, hydroelastic="rigid", resolution_hint=hint)
+        fixed = ContactProps(friction=obj.friction, hydroelastic="rigid", resolution_hint=hint)
+        part_props = [fixed] * len(prims)
     elif rigid:
-        props = props.model_copy(update={"hydroelastic": "rigid"})
+        stiff = props.model_copy(update={"hydroelastic": "rigid"})
+        base = obj.shape.base_parts()
+        part_props = [props if i in base else stiff for i in range(len(prims))]
     mass, com, inertia = inertial_of(prims, obj.mass)
     body = [f'<link name="{obj.name}">', sdf_inertial(mass, com, inertia)]
     if obj.collide:
-        body += [sdf_collision(f"{obj.name}_collision_{i}", p, props) for i, p in enumerate(prims)]
+        body += [
+            sdf_collision(f"{obj.name}_collision_{i}", p, c)
+            for i, (p, c) in enumerate(zip(prims, part_props, strict=True))
+        ]
     body.append(
         sdf_mesh_visual(f"{obj.name}_visual", export_obj(mesh, f"obj_{obj.shape.kind}"), obj.color)
     )

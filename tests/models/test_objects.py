@@ -253,3 +253,15 @@ def test_pot_stands_in_physics_and_is_a_container():
     for _ in range(10):
         sim.step(sim.station.embodiment.home_action())
     assert sim.object_poses()["pot"][2] == pytest.approx(TABLE_TOP, abs=0.002)
+
+
+def test_a_rigid_pot_keeps_the_base_its_walls_stand_on_compliant():
+    from bicoord_drake.models.objects import PotShape, object_sdf
+
+    pot = SceneObject(name="pot", shape=PotShape(radius=0.06, height=0.07))
+    parts = object_sdf(pot, rigid=True).split("<collision ")[1:]
+    assert len(parts) == len(pot.shape.primitives())
+    assert "<drake:compliant_hydroelastic/>" in parts[0]  # the base disc
+    assert all("<drake:rigid_hydroelastic/>" in p for p in parts[1:])  # walls and handles
+    assert "<drake:compliant_hydroelastic/>" in object_sdf(pot)
+    assert "<drake:rigid_hydroelastic/>" not in object_sdf(pot)

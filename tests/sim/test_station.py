@@ -221,10 +221,11 @@ def _has_modulus(station, name: str) -> set[bool]:
 
 
 def test_rigid_object_kinds_make_those_objects_rigid_hydroelastic():
-    scene = demo_scene("cubes")
+    scene = demo_scene("demo")
     default = build_station(scene, StationConfig(render=False))
-    rigid = build_station(scene, StationConfig(render=False, rigid_object_kinds=("box",)))
-    assert _has_modulus(default, "cube_0") == {True}
-    assert _has_modulus(rigid, "cube_0") == {False}
+    rigid = build_station(scene, StationConfig(render=False, rigid_object_kinds=("bowl",)))
+    assert _has_modulus(default, "bowl") == {True}
+    assert _has_modulus(rigid, "bowl") == {False}  # its walls reach the table: all rigid
+    assert _has_modulus(rigid, "red_cube") == {True}
     with pytest.raises(ValidationError, match="rigid_object_kinds"):
-        StationConfig(rigid_object_kinds=("plate",))
+        StationConfig(rigid_object_kinds=("box",))
