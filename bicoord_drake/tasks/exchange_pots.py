@@ -151,9 +151,6 @@ class ExchangePots(Task):
                     color=COLORS[color],
                     mass=POT_MASS,
                     pose=Pose(xyz=(x, y, TABLE_TOP)),
-                    # Rigid but for the base (bench_expert_physics.md, "Rigid-hydroelastic
-                    # bowls and pots").
-                    rigid_hydroelastic=True,
                 )
             )
             draws |= {f"{name}_xy": [x, y], f"{name}_radius": radius, f"{name}_height": height}
