@@ -33,8 +33,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-#: name -> StationConfig fields changed from the defaults (lagged, 1/120 s, margin 1e-4 m since
-#: #31; the names keep the labels of the screens in bench_expert_physics.md).
+#: name -> StationConfig fields changed from the defaults (SAP with near-rigid threshold 0,
+#: 1/120 s, margin 1e-4 m since #31; the names keep the labels of the screens in
+#: bench_expert_physics.md).
 VARIANTS: dict[str, dict] = {
     # The defaults before issue #31 (SAP at 1/300 s, no margin): the baseline of the ratios.
     "sap (today)": {"contact_approximation": "sap", "time_step": 1 / 300, "hydroelastic_margin": 0},
@@ -78,6 +79,11 @@ VARIANTS: dict[str, dict] = {
         "hydroelastic_margin": 1e-4,
         "sap_near_rigid_threshold": 0.0,
     },
+    # Today's defaults (SAP, near-rigid threshold 0, 1/120 s, margin 1e-4 m) ...
+    "default": {},
+    # ... with the bowls (and plates, cups, skillets: BowlShape) and pots rigid-hydroelastic.
+    "rigid bowls+pots": {"rigid_object_kinds": ("bowl", "pot")},
+    "rigid bowls": {"rigid_object_kinds": ("bowl",)},
 }
 
 

@@ -22,6 +22,11 @@ from pydantic import (
 )
 
 CAMERA_NAMES = ("head_camera", "left_camera", "right_camera")
+#: Shape kinds that may be made rigid-hydroelastic (``StationConfig.rigid_object_kinds``): a
+#: bowl's or pot's resting contact stays steady either way (wall slabs reaching the support
+#: give a ring of point contacts; a base the walls stand on stays compliant). A rigid box or
+#: disc alone on the rigid table would touch it at one point and rock.
+RigidKind = Literal["bowl", "pot"]
 CameraName = Literal["head_camera", "left_camera", "right_camera"]
 
 
@@ -145,6 +150,13 @@ class StationConfig(BaseModel):
         le=0.005,
         description="hydroelastic contact margin, m (steadies flat-on-flat resting contact at "
         "large time steps; 0 = Drake's default)",
+    )
+    rigid_object_kinds: tuple[RigidKind, ...] = Field(
+        (),
+        description="shape kinds of the free task objects made rigid-hydroelastic instead of "
+        "compliant, but for the base their walls stand on (models/shapes.py base_parts); the "
+        "finger pads stay compliant, so a grasp still presses a pressure field, and rigid-rigid "
+        "pairs (wall on table, bowl in bowl) fall back to point contact",
     )
     control_rate: float = Field(15.0, gt=0, le=1000, description="control/recording rate, Hz")
     gravity_compensation: bool = True

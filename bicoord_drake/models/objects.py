@@ -8,11 +8,12 @@ OBJ with normals.
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, get_args
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from bicoord_drake.config import RigidKind
 from bicoord_drake.models.geometry import (
     ContactProps,
     Pose,
@@ -182,10 +183,30 @@ class SceneObject(BaseModel):
     slide: Slide | None = Field(
         None, description="mounted on a prismatic joint to a fixed object (None: free or fixed)"
     )
+    rigid_hydroelastic: bool = Field(
+        False,
+        description="a bowl or pot that is rigid-hydroelastic but for the base its walls stand "
+        "on, whatever StationConfig.rigid_object_kinds says (a task whose bowls' contacts with "
+        "each other dominate its physics cost: stack_bowls)",
+    )
+
+    @model_validator(mode="after")
+    def _rigid_kind(self) -> SceneObject:
+        if self.rigid_hydroelastic and self.shape.kind not in get_args(RigidKind):
+            raise ValueError(
+                f"{self.name}: only {get_args(RigidKind)} may be rigid_hydroelastic, not a "
+                f"{self.shape.kind} (a rigid flat part on the rigid table touches it at one point)"
+            )
+        return self
 
 
-def object_sdf(obj: SceneObject) -> str:
-    """SDFormat for one scene object (a single body named after the object)."""
+def object_sdf(obj: SceneObject, rigid: bool = False) -> str:
+    """SDFormat for one scene object (a single body named after the object).
+
+    A free object is compliant-hydroelastic (its ``hydroelastic_modulus``) unless `rigid`
+    (``StationConfig.rigid_object_kinds``) or its ``rigid_hydroelastic``: then every part but
+    the shape's ``base_parts()`` is rigid-hydroelastic. A fixed object is always
+    rigid-hydroelastic."""
     prims = obj.shape.primitives()
     mesh = obj.shape.visual_mesh()
     hint = obj.resolution_hint or _resolution_hint(obj.shape)
@@ -196,12 +217,21 @@ def object_sdf(obj: SceneObject) -> str:
         resolution_hint=hint,
         dissipation=3.0,
     )
+    part_props = [props] * len(prims)
     if obj.fixed:
-        props = ContactProps(friction=obj.friction, hydroelastic="rigid", resolution_hint=hint)
+        fixed = ContactProps(friction=obj.friction, hydroelastic="rigid", resolution_hint=hint)
+        part_props = [fixed] * len(prims)
+    elif rigid or obj.rigid_hydroelastic:
+        stiff = props.model_copy(update={"hydroelastic": "rigid"})
+        base = obj.shape.base_parts()
+        part_props = [props if i in base else stiff for i in range(len(prims))]
     mass, com, inertia = inertial_of(prims, obj.mass)
     body = [f'<link name="{obj.name}">', sdf_inertial(mass, com, inertia)]
     if obj.collide:
-        body += [sdf_collision(f"{obj.name}_collision_{i}", p, props) for i, p in enumerate(prims)]
+        body += [
+            sdf_collision(f"{obj.name}_collision_{i}", p, c)
+            for i, (p, c) in enumerate(zip(prims, part_props, strict=True))
+        ]
     body.append(
         sdf_mesh_visual(f"{obj.name}_visual", export_obj(mesh, f"obj_{obj.shape.kind}"), obj.color)
     )

@@ -27,6 +27,12 @@ class _Shape(BaseModel):
     def visual_mesh(self) -> trimesh.Trimesh:
         return trimesh.util.concatenate([p.trimesh() for p in self.primitives()])
 
+    def base_parts(self) -> tuple[int, ...]:
+        """Indices in :meth:`primitives` of the parts that alone carry the object on a flat
+        support; they stay compliant when the object is made rigid-hydroelastic, since a rigid
+        flat part on the rigid table would touch it at one point (Drake's fallback) and rock."""
+        return ()
+
 
 class BoxShape(_Shape):
     """A box with full side lengths `size` (m)."""
@@ -111,6 +117,11 @@ class BowlShape(_Shape):
                 )
             )
         return prims
+
+    def base_parts(self) -> tuple[int, ...]:
+        """The base disc when the walls stand on it; walls reaching down to the support
+        already give a ring of contacts."""
+        return (0,) if self.walls_on_base else ()
 
     def visual_mesh(self) -> trimesh.Trimesh:
         """A smooth solid of revolution: outer wall, rim, inner wall and base."""
@@ -227,6 +238,10 @@ class PotShape(_Shape):
             walls_on_base=True,
         )
         return bowl.primitives() + self._handles()
+
+    def base_parts(self) -> tuple[int, ...]:
+        """The base disc (the walls stand on it)."""
+        return (0,)
 
     def visual_mesh(self) -> trimesh.Trimesh:
         r, w, h = self.radius, self.wall, self.height

@@ -106,12 +106,16 @@ def add_robot(plant: MultibodyPlant, embodiment: Embodiment) -> dict[str, ModelI
     return arms
 
 
-def add_scene_objects(plant: MultibodyPlant, scene: Scene) -> dict[str, object]:
-    """Parse every scene object; weld fixtures, mount sliding objects on their prismatic
-    joint (:func:`add_slide`), give free objects their initial pose."""
+def add_scene_objects(
+    plant: MultibodyPlant, scene: Scene, rigid_kinds: tuple[str, ...] = ()
+) -> dict[str, object]:
+    """Parse every scene object (rigid-hydroelastic if its shape's kind is in `rigid_kinds`);
+    weld fixtures, mount sliding objects on their prismatic joint (:func:`add_slide`), give
+    free objects their initial pose."""
     bodies = {}
     for obj in scene.objects:
-        (inst,) = Parser(plant).AddModelsFromString(object_sdf(obj), "sdf")
+        sdf = object_sdf(obj, rigid=obj.shape.kind in rigid_kinds)
+        (inst,) = Parser(plant).AddModelsFromString(sdf, "sdf")
         body = plant.GetBodyByName(obj.name, inst)
         X_WO = rigid_transform(obj.pose)
         if obj.fixed:
@@ -215,7 +219,7 @@ def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
     Parser(plant).AddModelsFromString(table_sdf(scene.appearance), "sdf")
     arms = add_robot(plant, embodiment)
     _configure_actuators(plant, embodiment, arms, config.kp_scale)
-    object_bodies = add_scene_objects(plant, scene)
+    object_bodies = add_scene_objects(plant, scene, config.rigid_object_kinds)
     if config.hydroelastic_margin > 0:
         _set_hydroelastic_margin(plant, scene_graph, config.hydroelastic_margin)
     plant.Finalize()

@@ -162,6 +162,10 @@ class StackBowls(Task):
                     color=COLORS[color],
                     mass=BOWL_MASS,
                     pose=Pose(xyz=(*placed[name], TABLE_TOP)),
+                    # Rigid (the pads stay compliant): nested compliant bowls made this the
+                    # slowest task to simulate (bench_expert_physics.md, "Rigid-hydroelastic
+                    # bowls and pots").
+                    rigid_hydroelastic=True,
                 )
             )
         return Scene(

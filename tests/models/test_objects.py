@@ -253,3 +253,25 @@ def test_pot_stands_in_physics_and_is_a_container():
     for _ in range(10):
         sim.step(sim.station.embodiment.home_action())
     assert sim.object_poses()["pot"][2] == pytest.approx(TABLE_TOP, abs=0.002)
+
+
+def test_a_rigid_pot_keeps_the_base_its_walls_stand_on_compliant():
+    from bicoord_drake.models.objects import PotShape, object_sdf
+
+    pot = SceneObject(name="pot", shape=PotShape(radius=0.06, height=0.07))
+    parts = object_sdf(pot, rigid=True).split("<collision ")[1:]
+    assert len(parts) == len(pot.shape.primitives())
+    assert "<drake:compliant_hydroelastic/>" in parts[0]  # the base disc
+    assert all("<drake:rigid_hydroelastic/>" in p for p in parts[1:])  # walls and handles
+    assert "<drake:compliant_hydroelastic/>" in object_sdf(pot)
+    assert "<drake:rigid_hydroelastic/>" not in object_sdf(pot)
+
+
+def test_an_object_may_ask_to_be_rigid_only_if_it_is_a_bowl_or_a_pot():
+    from bicoord_drake.models.objects import object_sdf
+
+    bowl = BowlShape(radius=0.058, base_radius=0.045, height=0.05)
+    sdf = object_sdf(SceneObject(name="b", shape=bowl, rigid_hydroelastic=True))
+    assert "<drake:compliant_hydroelastic/>" not in sdf  # its walls reach the support
+    with pytest.raises(ValidationError, match="rigid_hydroelastic"):
+        SceneObject(name="c", shape=BoxShape(size=(0.04, 0.04, 0.04)), rigid_hydroelastic=True)

@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 from pydantic import ValidationError
+from pydrake.all import Role
 
 from bicoord_drake.config import CameraConfig, StationConfig, parse_resolution
 from bicoord_drake.models.scene import demo_scene
@@ -206,3 +207,25 @@ def test_hydroelastic_margin_reaches_every_hydroelastic_geometry():
     assert len(margins) > 10 and all(m == pytest.approx(1e-4) for m in margins)
     with pytest.raises(ValidationError, match="hydroelastic_margin"):
         StationConfig(hydroelastic_margin=-1e-4)
+
+
+def _has_modulus(station, name: str) -> set[bool]:
+    """Whether each collision geometry of object `name` has a hydroelastic modulus (compliant
+    geometry has one, rigid has none; Drake's compliance type is not readable from Python)."""
+    inspector = station.scene_graph.model_inspector()
+    frame = station.plant.GetBodyFrameIdOrThrow(station.object_bodies[name].index())
+    ids = inspector.GetGeometries(frame, Role.kProximity)
+    props = [inspector.GetProximityProperties(g) for g in ids]
+    assert all(p.HasProperty("hydroelastic", "compliance_type") for p in props)
+    return {p.HasProperty("hydroelastic", "hydroelastic_modulus") for p in props}
+
+
+def test_rigid_object_kinds_make_those_objects_rigid_hydroelastic():
+    scene = demo_scene("demo")
+    default = build_station(scene, StationConfig(render=False))
+    rigid = build_station(scene, StationConfig(render=False, rigid_object_kinds=("bowl",)))
+    assert _has_modulus(default, "bowl") == {True}
+    assert _has_modulus(rigid, "bowl") == {False}  # its walls reach the table: all rigid
+    assert _has_modulus(rigid, "red_cube") == {True}
+    with pytest.raises(ValidationError, match="rigid_object_kinds"):
+        StationConfig(rigid_object_kinds=("box",))
