@@ -359,12 +359,19 @@ def _step_back(ctx: SkillContext, side: str) -> ArmPlan:
 
 def _carry_over(ctx: SkillContext, side: str, goal: RigidTransform, height: float) -> ArmPlan:
     """Straight up beside the platform until the held cube's bottom is `height` above the
-    goal's, then across to straight above the goal."""
+    goal's, then across to straight above the goal; where the arm cannot keep its hand's
+    orientation on the way up (a wrist at its joint limit), one planned carry instead."""
     X_WO = ctx.model.held_pose(side, ctx.q)
     rise = goal.translation()[2] + height - X_WO.translation()[2]
-    up = _vertical(ctx, side, rise, ignore=[PLATFORM], label="raise") if rise > 0.005 else None
-    over = carry_above(ctx, side, goal, height=height)
-    return up.then(over) if up is not None else over
+    if rise <= 0.005:
+        return carry_above(ctx, side, goal, height=height)
+    try:
+        up = _vertical(ctx, side, rise, ignore=[PLATFORM], label="raise")
+    except PlanningError as err:
+        if err.reason != "ik_unreachable":
+            raise
+        return carry_above(ctx, side, goal, height=height)
+    return up.then(carry_above(ctx, side, goal, height=height))
 
 
 def _vertical(ctx: SkillContext, side: str, dz: float, *, ignore, label: str) -> ArmPlan:
@@ -428,16 +435,16 @@ def _inward(side: str) -> np.ndarray:
 def _lifter_grasps(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> list[Grasp]:
     """The lifter's side grasps of the middle cube, best first: from the front (approach +y,
     jaws along x), then from its own side (jaws along y). Those whose hand, raised LIFT, comes
-    closer than CLOSE_CLEARANCE to the extractor's hand at every one of its grasps of the
+    closer than the arms' clearance to the extractor's hand at every one of its grasps of the
     bottom cube are moved behind (a hand wide along its finger axis, held from the front,
-    reaches over the extractor's)."""
+    reaches over the extractor's; only the fingers may pass CLOSE_CLEARANCE apart)."""
     bottom, middle, _ = BLOCKS
     takes = _grasps(ctx, scene, bottom, ext, _inward(ext))
     grasps = _grasps(ctx, scene, middle, lifter, FRONT)
     grasps += _grasps(ctx, scene, middle, lifter, _inward(lifter))
     boxes = ctx.model.hand_boxes
     margins = [
-        max(hands_gap(boxes, _raised(g.X_WG, LIFT), t.X_WG) for t in takes) - CLOSE_CLEARANCE
+        max(hands_gap(boxes, _raised(g.X_WG, LIFT), t.X_WG) for t in takes) - ctx.clearance
         for g in grasps
     ]
     return roomy_first(grasps, margins)
