@@ -72,6 +72,14 @@ def points_to_boxes(points_T: np.ndarray, boxes) -> float:
     return best
 
 
+def hands_gap(boxes, X_a: RigidTransform, X_b: RigidTransform) -> float:
+    """Least distance (m) between two hands of one kind (`boxes` in the TCP frame, as
+    ``ArmSpec.hand_boxes``) at TCP poses `X_a` and `X_b`, from surface points of the first
+    (about 2 * SAMPLE_SPACING apart); 0 where they overlap."""
+    points = np.vstack([box_points(lo, hi) for lo, hi in boxes])
+    return points_to_boxes(_transform(X_b.inverse() @ X_a, points), boxes)
+
+
 class HandRoom:
     """The room around the hand of `side` with the model at joint angles `q`: objects in
     `exclude` (the object being grasped, what is ignored) and what `side` holds are left out."""

@@ -13,6 +13,7 @@ from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
+from bicoord_drake.planning.clearance import hands_gap, roomy_first
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import Grasp, GraspParams, box_grasps, stack_target
 from bicoord_drake.planning.skills import (
@@ -77,6 +78,8 @@ PULL_LAG = 2
 MAX_DELAY = 60
 #: Control steps over which a gripper lets go of a cube on the stack.
 RELEASE_STEPS = 12
+#: The lifter's first choice of approach (its jaws then close along x).
+FRONT = np.array([0.0, 1.0, 0.0])
 #: Clearance (m) between the arms while both hold the stack (their fingers pass 2-4 cm apart).
 CLOSE_CLEARANCE = 0.01
 #: Where the lifter's empty hand steps back from the stack while the pulled cube is set on
@@ -249,7 +252,7 @@ def _extract(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> Motion:
     starts PULL_LAG steps after the lift is complete (or when its own grasp is, if later)."""
     bottom, middle, top = BLOCKS
     X_top = ctx.model.object_pose(top)
-    grasp = pick(ctx, lifter, middle, lift=0.0, grasps=_grasps(ctx, scene, middle, lifter))
+    grasp = pick(ctx, lifter, middle, lift=0.0, grasps=_lifter_grasps(ctx, scene, ext, lifter))
     up = _vertical(ctx, lifter, LIFT, ignore=[top, bottom], label="lift the middle cube")
     # the top cube rides on the middle one
     ctx.model.set_object_pose(
@@ -258,7 +261,8 @@ def _extract(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> Motion:
     lift_plan = grasp.then(up)
     # the top cube now rests on the held middle one: left out of the checks (it is above both)
     with _close(ctx), ctx.model.ignoring([top]):
-        take = pick(ctx, ext, bottom, lift=0.0, grasps=_grasps(ctx, scene, bottom, ext))
+        takes = _grasps(ctx, scene, bottom, ext, _inward(ext))
+        take = pick(ctx, ext, bottom, lift=0.0, grasps=takes)
         away = np.array([1.0 if ext == "right" else -1.0, 0.0, 0.0])
         out = pull(ctx, ext, away, PULL, ignore=[PLATFORM])
     return _pull_after_lift(ctx, ext, take, out, lift_plan, ignore=[top])
@@ -355,12 +359,19 @@ def _step_back(ctx: SkillContext, side: str) -> ArmPlan:
 
 def _carry_over(ctx: SkillContext, side: str, goal: RigidTransform, height: float) -> ArmPlan:
     """Straight up beside the platform until the held cube's bottom is `height` above the
-    goal's, then across to straight above the goal."""
+    goal's, then across to straight above the goal; where the arm cannot keep its hand's
+    orientation on the way up (a wrist at its joint limit), one planned carry instead."""
     X_WO = ctx.model.held_pose(side, ctx.q)
     rise = goal.translation()[2] + height - X_WO.translation()[2]
-    up = _vertical(ctx, side, rise, ignore=[PLATFORM], label="raise") if rise > 0.005 else None
-    over = carry_above(ctx, side, goal, height=height)
-    return up.then(over) if up is not None else over
+    if rise <= 0.005:
+        return carry_above(ctx, side, goal, height=height)
+    try:
+        up = _vertical(ctx, side, rise, ignore=[PLATFORM], label="raise")
+    except PlanningError as err:
+        if err.reason != "ik_unreachable":
+            raise
+        return carry_above(ctx, side, goal, height=height)
+    return up.then(carry_above(ctx, side, goal, height=height))
 
 
 def _vertical(ctx: SkillContext, side: str, dz: float, *, ignore, label: str) -> ArmPlan:
@@ -397,15 +408,9 @@ class _close:
         self.ctx.clearance = self.saved
 
 
-def _grasps(ctx: SkillContext, scene: Scene, name: str, side: str) -> list[Grasp]:
-    """Side grasps of cube `name` at its centre height: the lifter's from the front (approach
-    +y, jaws along x), the extractor's from its own side (approach toward the centre line,
-    jaws along y), best first."""
-    ext, _ = _roles(scene)
-    if side == ext:
-        want = np.array([-1.0 if side == "right" else 1.0, 0.0, 0.0])
-    else:
-        want = np.array([0.0, 1.0, 0.0])
+def _grasps(ctx: SkillContext, scene: Scene, name: str, side: str, want: np.ndarray) -> list[Grasp]:
+    """Side grasps of cube `name` by `side` approaching along `want`, the TCP low over the
+    platform top, best first."""
     params = GraspParams(support_z=PLATFORM_TOP, side_clearance=0.0)
     X_WO = ctx.model.object_pose(name)
     grasps = box_grasps(
@@ -420,6 +425,33 @@ def _grasps(ctx: SkillContext, scene: Scene, name: str, side: str) -> list[Grasp
     if not chosen:
         raise PlanningError("no_grasp", f"no side grasp of {name} for the {side} arm")
     return chosen
+
+
+def _inward(side: str) -> np.ndarray:
+    """The approach from `side`'s own side toward the centre line."""
+    return np.array([-1.0 if side == "right" else 1.0, 0.0, 0.0])
+
+
+def _lifter_grasps(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> list[Grasp]:
+    """The lifter's side grasps of the middle cube, best first: from the front (approach +y,
+    jaws along x), then from its own side (jaws along y). Those whose hand, raised LIFT, comes
+    closer than the arms' clearance to the extractor's hand at every one of its grasps of the
+    bottom cube are moved behind (a hand wide along its finger axis, held from the front,
+    reaches over the extractor's; only the fingers may pass CLOSE_CLEARANCE apart)."""
+    bottom, middle, _ = BLOCKS
+    takes = _grasps(ctx, scene, bottom, ext, _inward(ext))
+    grasps = _grasps(ctx, scene, middle, lifter, FRONT)
+    grasps += _grasps(ctx, scene, middle, lifter, _inward(lifter))
+    boxes = ctx.model.hand_boxes
+    margins = [
+        max(hands_gap(boxes, _raised(g.X_WG, LIFT), t.X_WG) for t in takes) - ctx.clearance
+        for g in grasps
+    ]
+    return roomy_first(grasps, margins)
+
+
+def _raised(X: RigidTransform, dz: float) -> RigidTransform:
+    return RigidTransform(X.rotation(), X.translation() + [0.0, 0.0, dz])
 
 
 def _roles(scene: Scene) -> tuple[str, str]:

@@ -6,11 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from pydrake.math import RigidTransform
 
 from bicoord_drake.models.embodiment import aloha_viperx
 from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import Scene, cube
-from bicoord_drake.planning.clearance import roomy_first
+from bicoord_drake.planning.clearance import hands_gap, roomy_first
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import arm_base, grasp_candidates
 from bicoord_drake.planning.model import PlanningModel
@@ -41,6 +42,17 @@ def test_side_clearance_follows_the_hand():
     assert hand_params(ctx).side_clearance == pytest.approx(0.044 + ctx.env_clearance)
     viperx = SkillContext(PlanningModel(Scene()))
     assert hand_params(viperx).side_clearance == 0.03  # as before: the ViperX's plans stay
+
+
+def test_hands_gap_reads_the_finger_axis():
+    """Two Franka Hands side by side 0.25 m apart along their finger axis y overlap
+    nowhere (0.2 m wide each: 5 cm apart); 0.15 m apart they overlap; along z they are
+    thin (link 7, r 0.044 m: 0.1 m apart leaves 1.2 cm)."""
+    boxes = get_embodiment("franka_pair").arm.hand_boxes()
+    at = RigidTransform()
+    assert hands_gap(boxes, at, RigidTransform([0.0, 0.25, 0.0])) == pytest.approx(0.05, abs=0.005)
+    assert hands_gap(boxes, at, RigidTransform([0.0, 0.15, 0.0])) == 0.0
+    assert hands_gap(boxes, at, RigidTransform([0.0, 0.0, 0.1])) == pytest.approx(0.012, abs=0.005)
 
 
 def test_roomy_first_keeps_order_and_moves_crowded_ones_back():
