@@ -8,6 +8,7 @@ from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform
+from scipy.spatial import Delaunay
 
 from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose
@@ -49,7 +50,7 @@ from bicoord_drake.stages.predicates import (
 )
 from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
-from bicoord_drake.tasks.turn_taking import alternating_stages
+from bicoord_drake.tasks.turn_taking import alternating_stages, hold_until_still
 
 #: The static bin: 19 x 17 cm outside, 8 cm tall, 6 mm walls, at the spec's spot, on a 2 cm
 #: solid base: an object dropped in reaches 1.4 m/s, 12 mm per plant step, and through a 6 mm
@@ -74,11 +75,39 @@ X_RANGE = {"left": (-0.3, BIN_XY[0] - 0.18), "right": (BIN_XY[0] + 0.18, 0.25)}
 Y_RANGE = (-0.1, 0.1)
 YAW = math.radians(60)
 MIN_GAP = 0.11
-#: Drop points in the bin, from its centre (m): each arm over its own half, the first two
-#: drops to the far side, the last two to the near side.
+#: Default drop points in the bin, from its centre (m): each arm over its own half, the first
+#: two drops to the far side, the last two to the near side.
 DROP_DX = 0.03
 DROP_DY = (0.02, 0.02, -0.02, -0.02)
-#: The held object's bottom is let go this high above the rim (it falls the rest).
+#: Drop spots searched (:func:`_drop_spots`): the held object's centre on a DROP_GRID (m) grid
+#: over the bin's inner floor, turned by each of DROP_YAWS (rad), its footprint (sampled every
+#: FOOTPRINT_STEP, m) at least DROP_WALL (m) inside the inner walls. Dropped onto an object
+#: already in the bin, a light object lands tilted on it and (under SAP) rocks there or tips
+#: off for a second and can stay propped up above the rim; dropped against a wall it can flip
+#: over the rim. So a spot costs the footprint samples that fall on the objects in the bin
+#: (grown by CROWD_MARGIN, about as far as a dropped object bounces) plus WALL_WEIGHT per
+#: sample within WALL_BAND of a wall; the cheapest is used (ties: the one nearest the default
+#: drop point), the next ones (DROP_TRIES in all) where the arm cannot reach it.
+DROP_GRID = 0.01
+DROP_YAWS = tuple(k * math.pi / 4 for k in range(4))
+DROP_WALL = 0.008
+FOOTPRINT_STEP = 0.005
+CROWD_MARGIN = 0.02
+WALL_BAND = 0.02
+WALL_WEIGHT = 0.5
+DROP_TRIES = 6
+#: The held object's bottom is let go DROP_GAP (m) above what lies under its footprint (the
+#: inner floor, or the top of an object in the bin it overlaps): lowered straight into the bin
+#: from DROP_LOWER (m) above the old release height, FALL (m) above the rim, and backed off
+#: straight up to DROP_RETREAT (m) above that height. Let go FALL above the rim, a light
+#: object fell 8.5 cm and hit the floor at 1.3 m/s, and (under SAP) could bounce off a corner
+#: and flip over the rim or into the opening fingers; from DROP_GAP it lands at 0.8 m/s (a
+#: lower release let a flat box tilt against the opening fingers and be carried up by them).
+#: Where the arm cannot reach that low at any of the spots, the object is let go FALL above
+#: the rim.
+DROP_GAP = 0.03
+DROP_LOWER = 0.04
+DROP_RETREAT = 0.05
 FALL = 0.025
 #: While one arm leaves the bin and the other brings the next object, the bringing arm's TCP
 #: comes within CLEAR_RADIUS (xy, m) of the bin's centre only CLEAR_STEPS after the leaving
@@ -111,8 +140,11 @@ class CleanTable(Task):
     is timed against the other arm's departure, not after it). Turn-taking at the bin is
     forced by the task: the bin takes one hand at a time, so the arms alternate there, and
     while one drops the other is picking its next object or holding it at its waiting point
-    beside the bin. Which arm drops first is drawn per seed. Objects are let go 2.5 cm above
-    the rim and fall in.
+    beside the bin. Which arm drops first is drawn per seed. Each object is lowered into the
+    bin and let go 3 cm above what lies under it (the floor, or an object already there), at
+    the spot and yaw where it covers least of the objects already in the bin and keeps off its
+    walls (where the arm cannot reach that low, 2.5 cm above the rim); the arms then hold
+    still until everything in the bin has come to rest.
 
     Randomization: which arm drops first; which four of the six kinds of object (without
     repeats) and which side each is on; positions x in [-0.3, -0.21] (left) or [0.15, 0.25]
@@ -226,8 +258,15 @@ class CleanTable(Task):
         second = other_side(first)
         o1, o2, o3, o4 = OBJECTS
 
+        # take_turn's fallbacks: the fingers of an arm letting go low in the bin come within
+        # merge's padding of the bin and of the objects in it (its plan kept its own clearance
+        # from them, which no timing changes)
+        ignore = (*OBJECTS, "bin")
+
         def turn(leaver: ArmPlan, arriver: ArmPlan) -> Motion:
-            return take_turn(ctx, leaver, arriver, BIN_XY, CLEAR_RADIUS, lag_steps=CLEAR_STEPS)
+            return take_turn(
+                ctx, leaver, arriver, BIN_XY, CLEAR_RADIUS, lag_steps=CLEAR_STEPS, ignore=ignore
+            )
 
         # ---- stage 1: both arms pick the object nearer the bin on their side
         plans = {first: _pick(ctx, first, o1)}
@@ -246,8 +285,19 @@ class CleanTable(Task):
         leaving = retreat(ctx, first)
         dropping = _drop(ctx, second, 3)
         yield from run(
-            leave_as_arrives(ctx, leaving, dropping, BIN_XY, CLEAR_RADIUS, lag_steps=CLEAR_STEPS)
+            leave_as_arrives(
+                ctx,
+                leaving,
+                dropping,
+                BIN_XY,
+                CLEAR_RADIUS,
+                lag_steps=CLEAR_STEPS,
+                ignore=ignore,
+            )
         )
+        # ---- both hold still until the objects have come to rest (the last one can rock on or
+        # slide off the others for a second), then SETTLE_STEPS more
+        yield from hold_until_still(ctx, view, OBJECTS)
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
@@ -285,9 +335,106 @@ def _pick(ctx: SkillContext, side: str, name: str) -> ArmPlan:
 
 
 def _drop(ctx: SkillContext, side: str, k: int) -> ArmPlan:
-    """Drop what `side` holds into the bin at the k-th drop point (over `side`'s half)."""
+    """Drop what `side` holds into the bin at the best of :func:`_drop_spots` that `side` can
+    reach (the k-th default drop point, over `side`'s half, in an empty bin), let go low
+    (DROP_GAP above what is under it) where it can, FALL above the rim where not."""
     sign = 1.0 if side == "right" else -1.0
-    return drop_into(ctx, side, "bin", offset_xy=(sign * DROP_DX, DROP_DY[k]), fall=FALL)
+    default = np.asarray(BIN_XY) + [sign * DROP_DX, DROP_DY[k]]
+    spots = _drop_spots(ctx, side, default)[:DROP_TRIES]
+    rim = TABLE_TOP + BIN.size[2]
+    reasons = []
+    for low in (True, False):
+        for xy, yaws, support in spots:
+            fall = min(FALL, support + DROP_GAP - rim) if low else FALL
+            offset = xy - np.asarray(BIN_XY)
+            try:
+                with ctx.transaction():  # a failed try leaves the tracked state as it was
+                    return drop_into(
+                        ctx,
+                        side,
+                        "bin",
+                        offset_xy=offset,
+                        fall=fall,
+                        lower=DROP_LOWER + FALL - fall,
+                        retreat=DROP_RETREAT + FALL - fall,
+                        yaws=yaws,
+                    )
+            except PlanningError as err:
+                reasons.append(err.reason)
+    raise PlanningError("place_failed", f"{side} cannot drop into the bin ({', '.join(reasons)})")
+
+
+def _drop_spots(
+    ctx: SkillContext, side: str, default: np.ndarray
+) -> list[tuple[np.ndarray, tuple[float, ...], float]]:
+    """Drop spots in the bin for what `side` holds, cheapest first (see DROP_GRID; ties:
+    nearest `default`): (world xy, the yaws of least cost there with their half turns, the
+    height (world z) of what the footprint would land on at those yaws)."""
+    crowd = [(_grown_hull(ctx, name), _world_hull(ctx, name)[:, 2].max()) for name in _in_bin(ctx)]
+    floor = TABLE_TOP + BIN.floor_thickness
+    local = _footprint(ctx.model.object(ctx.model.held[side].name).shape)
+    half = np.asarray(BIN.inner_half)
+    spots = []
+    for x in np.arange(-half[0], half[0], DROP_GRID):
+        for y in np.arange(-half[1], half[1], DROP_GRID):
+            costs = {}
+            for yaw in DROP_YAWS:
+                c, s = math.cos(yaw), math.sin(yaw)
+                pts = local @ np.array([[c, s], [-s, c]]) + [x, y]  # bin frame
+                if np.any(np.abs(pts) > half - DROP_WALL):
+                    continue
+                hits = [
+                    (np.count_nonzero(h.find_simplex(pts + BIN_XY) >= 0), top) for h, top in crowd
+                ]
+                walled = np.count_nonzero(np.any(np.abs(pts) > half - WALL_BAND, axis=1))
+                support = max([floor] + [top for n, top in hits if n])
+                costs[yaw] = (sum(n for n, _ in hits) + WALL_WEIGHT * walled, support)
+            if costs:
+                least = min(cost for cost, _ in costs.values())
+                best = [yaw for yaw, (cost, _) in costs.items() if cost == least]
+                yaws = tuple(a for yaw in best for a in (yaw, yaw + math.pi))
+                support = max(costs[yaw][1] for yaw in best)
+                xy = np.asarray(BIN_XY) + [x, y]
+                spots.append((least, float(np.hypot(*(xy - default))), xy, yaws, float(support)))
+    spots.sort(key=lambda spot: spot[:2])
+    return [(xy, yaws, support) for _, _, xy, yaws, support in spots]
+
+
+def _in_bin(ctx: SkillContext) -> list[str]:
+    """The objects lying in the bin (their centre within its inner walls; not held)."""
+    out = []
+    for name in OBJECTS:
+        if ctx.model.holders(name):
+            continue
+        centre = _world_hull(ctx, name)[:, :2].mean(axis=0) - np.asarray(BIN_XY)
+        if np.all(np.abs(centre) <= np.asarray(BIN.inner_half)):
+            out.append(name)
+    return out
+
+
+def _grown_hull(ctx: SkillContext, name: str) -> Delaunay:
+    """The xy outline of `name` as it lies, grown by CROWD_MARGIN (its hull's points moved
+    that far out each of 8 ways), for point-in-hull tests."""
+    pts = _world_hull(ctx, name)[:, :2]
+    ways = np.linspace(0.0, 2 * math.pi, 8, endpoint=False)
+    ring = CROWD_MARGIN * np.stack([np.cos(ways), np.sin(ways)], -1)
+    return Delaunay((pts[:, None] + ring[None]).reshape(-1, 2))
+
+
+def _world_hull(ctx: SkillContext, name: str) -> np.ndarray:
+    """(N, 3) vertices of `name`'s primitives, in world, as the planning model last saw it."""
+    X = ctx.model.object_pose(name)
+    pts = np.concatenate([p.trimesh().vertices for p in ctx.model.object(name).shape.primitives()])
+    return pts @ X.rotation().matrix().T + X.translation()
+
+
+def _footprint(shape: Shape) -> np.ndarray:
+    """(N, 2) points every FOOTPRINT_STEP over the xy box of the shape's primitives in its own
+    frame (its outline standing upright)."""
+    pts = np.concatenate([p.trimesh().vertices[:, :2] for p in shape.primitives()])
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    axes = [np.arange(lo[i], hi[i] + 1e-9, FOOTPRINT_STEP) for i in range(2)]
+    return np.stack(np.meshgrid(*axes), -1).reshape(-1, 2)
 
 
 def _wait(ctx: SkillContext, side: str) -> ArmPlan:

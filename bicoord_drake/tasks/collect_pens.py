@@ -44,7 +44,11 @@ from bicoord_drake.stages.predicates import (
 )
 from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
-from bicoord_drake.tasks.turn_taking import alternating_expert, alternating_stages
+from bicoord_drake.tasks.turn_taking import (
+    alternating_expert,
+    alternating_stages,
+    hold_until_still,
+)
 
 #: The static pen holder: a straight cup 8 cm across and 10 cm tall, 4 mm walls.
 HOLDER = pen_holder(radius=0.04, height=0.10, wall=0.004)
@@ -67,9 +71,13 @@ APPROACH_MARGIN = 0.01
 #: below the fingers once it hangs tip down), the fingertips TIP_CLEARANCE above the table.
 GRASP_BACK = 0.035
 TIP_CLEARANCE = 0.006
-#: The tip is let go INSERT (m) below the rim (it then drops to the floor and leans); with
-#: GRASP_BACK this keeps the gripper above the top of a pen standing straight in the holder.
-INSERT = 0.025
+#: The tip is let go INSERTS[0] (m) below the rim, 4.6 cm above the holder's floor, where the
+#: arm can take it there clear of the pens already standing, else INSERTS[1] below it (with
+#: GRASP_BACK that keeps the gripper above the top of a pen standing straight in the holder).
+#: Let go 2.5 cm below the rim, a pen fell 7 cm, hit the floor at 1.2 m/s and (under SAP)
+#: could bounce up, tilt over the rim and, after seeming to settle, tip out onto the table.
+#: (Let go 2.6 cm above the floor, the pens stood steeper and one could creep for seconds.)
+INSERTS = (0.05, 0.025)
 #: The pen is carried over the holder this much (m) higher and lowered straight from there.
 LOWER = 0.06
 #: Release jaw gap (m): the fingers part to about 5 cm, clear of the pens already standing
@@ -85,11 +93,6 @@ CLEAR_STEPS = 3
 WAIT_AT = (0.2, 0.06, 0.2)
 #: Control steps both arms hold still at the end (the pens must be seen at rest for 0.3 s).
 SETTLE_STEPS = 10
-#: Before that, both hold in chunks of 5 steps (at most this many) until no pen moved more
-#: than STILL_MOVE (m) or turned more than STILL_TURN (rad) over a chunk.
-MAX_SETTLE_CHUNKS = 8
-STILL_MOVE = 0.001
-STILL_TURN = 0.01
 #: A pen counts as lifted this far (m) above where it lay.
 LIFT = 0.05
 #: Slack (rad) on the holder's geometric lean limit (compliant contact, the wall polygon).
@@ -112,8 +115,9 @@ class CollectPens(Task):
     table; two pens or markers lie flat on each side. Both arms pick the pen nearer the
     holder on their side at once, from above, across the pen 3.5 cm behind its middle; the
     first arm turns its wrist so the pen hangs tip down, carries it over the holder, lowers
-    the tip 2.5 cm into the cup and lets go (the pen drops to the floor and leans on the rim),
-    while the other waits beside the holder with its own pen. Then the second arm puts its
+    the tip 5 cm into the cup (2.5 cm where its gripper would meet the pens already standing)
+    and lets go (the pen drops to the floor and leans on the rim), while the other waits
+    beside the holder with its own pen. Then the second arm puts its
     pen in while the first picks its other one, the first puts that in while the second picks
     its last, and the second puts the last one in while the first retreats. Each arm arrives
     over the holder as the other leaves it (the arrival is timed against the other's
@@ -265,11 +269,7 @@ class CollectPens(Task):
         )
         # ---- both hold still until the pens have come to rest (the last one may still slide
         # down into its lean), then SETTLE_STEPS more
-        for _ in range(MAX_SETTLE_CHUNKS):
-            before = view.object_transforms()
-            yield from merge(ctx, hold(ctx, "left", 5), hold(ctx, "right", 5)).actions()
-            if _pens_still(before, view.object_transforms()):
-                break
+        yield from hold_until_still(ctx, view, PENS)
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
@@ -327,35 +327,52 @@ def _pick(ctx: SkillContext, side: str, name: str) -> ArmPlan:
 
 
 def _insert(ctx: SkillContext, side: str) -> ArmPlan:
-    """Turn the held pen tip down over the holder, lower its tip INSERT below the rim at the
-    point of the cup farthest from the pens already standing in it, let go, back off up."""
+    """Turn the held pen tip down over the holder, lower its tip into the cup (the deepest of
+    INSERTS the arm can reach) at the point farthest from the pens already standing in it,
+    let go, back off up."""
     held = ctx.model.held.get(side)
     if held is None:
         raise PlanningError("gripper_empty", f"{side} holds nothing to put in the holder")
-    shape: PenShape = ctx.model.object(held.name).shape
+    reasons = []
+    for insert in INSERTS:
+        try:
+            with ctx.transaction():  # a failed try leaves the tracked state as it was
+                plan = _insert_to(ctx, side, held.name, insert)
+        except PlanningError as err:
+            reasons.append(err.reason)
+            continue
+        plan.label = f"put {held.name} in the holder"
+        return plan
+    raise PlanningError(
+        "place_failed", f"{side} cannot put {held.name!r} in the holder ({', '.join(reasons)})"
+    )
+
+
+def _insert_to(ctx: SkillContext, side: str, held: str, insert: float) -> ArmPlan:
+    """Put the pen `held` in with its tip let go `insert` (m) below the rim, lowered straight
+    from LOWER (m) above INSERTS[-1] below it (where the shallowest insert starts), and backed
+    off as far up."""
+    shape: PenShape = ctx.model.object(held).shape
     X_WH = ctx.model.object_pose("holder")
     rim = X_WH.translation()[2] + HOLDER.height
-    tip = _drop_point(ctx, X_WH, held.name)
-    p = [tip[0], tip[1], rim - INSERT - shape.tip_point()[2]]
-    goal = RigidTransform(RotationMatrix(), p)
-    yaws = [k * math.pi / 6 for k in range(12)]
-    plan = place(
+    tip = _drop_point(ctx, X_WH, held, insert)
+    p = [tip[0], tip[1], rim - insert - shape.tip_point()[2]]
+    deeper = insert - INSERTS[-1]
+    return place(
         ctx,
         side,
-        goal,
-        approach_height=LOWER,
-        retreat=0.05,
+        RigidTransform(RotationMatrix(), p),
+        approach_height=LOWER + deeper,
+        retreat=0.05 + deeper,
         opening=ctx.model.embodiment.arm.gripper.opening_for_gap(RELEASE_GAP),
-        yaws=yaws,
+        yaws=[k * math.pi / 6 for k in range(12)],
     )
-    plan.label = f"put {held.name} in the holder"
-    return plan
 
 
-def _drop_point(ctx: SkillContext, X_WH: RigidTransform, held: str) -> np.ndarray:
+def _drop_point(ctx: SkillContext, X_WH: RigidTransform, held: str, insert: float) -> np.ndarray:
     """The xy (world) in the holder, of its centre and the DROP_RINGS around it, that is
     farthest from the axes of the pens already standing in the cup (over the height the
-    held pen passes through)."""
+    held pen's tip passes through, down to `insert` below the rim)."""
     c = X_WH.translation()
     cands = [c[:2]] + [
         c[:2] + r * np.array([math.cos(a), math.sin(a)])
@@ -373,7 +390,7 @@ def _drop_point(ctx: SkillContext, X_WH: RigidTransform, held: str) -> np.ndarra
             segs.append((a, b))
     if not segs:
         return np.asarray(c[:2], dtype=float)
-    z0, z1 = c[2] + HOLDER.height - INSERT - 0.01, c[2] + HOLDER.height + 0.02
+    z0, z1 = c[2] + HOLDER.height - insert - 0.01, c[2] + HOLDER.height + 0.02
 
     def clearance(xy: np.ndarray) -> float:
         out = math.inf
@@ -385,17 +402,6 @@ def _drop_point(ctx: SkillContext, X_WH: RigidTransform, held: str) -> np.ndarra
         return out
 
     return np.asarray(max(cands, key=clearance), dtype=float)
-
-
-def _pens_still(before: dict, after: dict) -> bool:
-    """No pen moved more than STILL_MOVE or turned more than STILL_TURN between two
-    observations (name -> RigidTransform)."""
-    for name in PENS:
-        a, b = before[name], after[name]
-        turn = (a.rotation().inverse() @ b.rotation()).ToAngleAxis().angle()
-        if np.linalg.norm(a.translation() - b.translation()) > STILL_MOVE or turn > STILL_TURN:
-            return False
-    return True
 
 
 def _wait(ctx: SkillContext, side: str) -> ArmPlan:

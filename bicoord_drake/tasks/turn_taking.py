@@ -10,6 +10,7 @@ other four persistent (1, 2, 3, 4 objects in).
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,12 +19,24 @@ from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
     SkillContext,
+    hold,
     merge,
     retreat,
     take_turn,
 )
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import Predicate
+
+if TYPE_CHECKING:
+    from bicoord_drake.tasks.base import WorldView
+
+#: hold_until_still: both arms hold in chunks of STILL_CHUNK control steps (at most
+#: MAX_STILL_CHUNKS) until no object moved more than STILL_MOVE (m) or turned more than
+#: STILL_TURN (rad) over a chunk.
+STILL_CHUNK = 5
+MAX_STILL_CHUNKS = 8
+STILL_MOVE = 0.001
+STILL_TURN = 0.01
 
 
 def alternating_stages(
@@ -101,3 +114,28 @@ def alternating_expert(
     # ---- stage 5: the first arm retreats as the second puts the last object in
     leaver = retreat(ctx, first)
     yield from run(turn(leaver, put(second, 3)))
+
+
+def hold_until_still(
+    ctx: SkillContext, view: WorldView, names: Sequence[str]
+) -> Iterator[np.ndarray]:
+    """Both arms hold still until `names` have come to rest (a light object let go last can
+    still rock, slide or tip off the others for a second: the end check needs it at rest),
+    in chunks of STILL_CHUNK steps, at most MAX_STILL_CHUNKS of them."""
+    for _ in range(MAX_STILL_CHUNKS):
+        before = view.object_transforms()
+        still = merge(ctx, hold(ctx, "left", STILL_CHUNK), hold(ctx, "right", STILL_CHUNK))
+        yield from still.actions()
+        if _still(names, before, view.object_transforms()):
+            return
+
+
+def _still(names: Sequence[str], before: dict, after: dict) -> bool:
+    """No object of `names` moved more than STILL_MOVE or turned more than STILL_TURN between
+    two observations (name -> RigidTransform)."""
+    for name in names:
+        a, b = before[name], after[name]
+        turn = (a.rotation().inverse() @ b.rotation()).ToAngleAxis().angle()
+        if np.linalg.norm(a.translation() - b.translation()) > STILL_MOVE or turn > STILL_TURN:
+            return False
+    return True

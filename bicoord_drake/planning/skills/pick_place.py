@@ -241,7 +241,8 @@ def drop_into(
     yaws: Sequence[float] = tuple(k * np.pi / 4 for k in range(8)),
 ) -> ArmPlan:
     """Carry the held object over the opening of `container`, lower it until its bottom is
-    `fall` (m) above the rim, let go and back off up: the object falls the last few cm (a bin
+    `fall` (m) above the rim (below it if negative: lowered into the container, from `lower`
+    above that), let go and back off up: the object falls the last few cm (a bin
     is filled this way; nothing is set down inside it). The drop point is the container's
     centre shifted by `offset_xy` in the world; the object stays upright, turned by each of
     `yaws` about the container's axes (most natural first: the wrist turns least)."""
