@@ -449,6 +449,30 @@ class PlanningModel:
         self._update_radius()
         self._contexts.clear()
 
+    @contextmanager
+    def holding(self, held: Mapping[str, HeldObject]) -> Iterator[None]:
+        """Within the block the grippers hold exactly `held` (side -> :class:`HeldObject`, each
+        at its grasp ``X_GO``) instead of what they hold now; afterwards the holds are put back
+        as they were. An object held in neither is untouched (its pose stays where the model
+        has it); one held in only one of them is parked or put back at that pose. A merged
+        motion's check carries each object this way from its pick to its release."""
+        for side, h in held.items():
+            if h.side != side:
+                raise ValueError(f"{h.name} is held by {h.side}, not {side}")
+        previous = dict(self._held)
+        self._set_held(dict(held))
+        try:
+            yield
+        finally:
+            self._set_held(previous)
+
+    def _set_held(self, held: dict[str, HeldObject]) -> None:
+        before = {h.name for h in self._held.values()}
+        self._held = held
+        for name in sorted(before ^ {h.name for h in held.values()}):
+            self._refresh_anchor(name)
+        self._sync_checker_held()
+
     # ------------------------------------------------------------------ ignoring objects
     @contextmanager
     def ignoring(self, names: Iterable[str]) -> Iterator[None]:
@@ -554,6 +578,27 @@ class PlanningModel:
         pad[cross] = clearance
         np.fill_diagonal(pad, 0.0)
         self.checker.SetPaddingMatrix(pad)
+
+    @contextmanager
+    def arms_only(self) -> Iterator[None]:
+        """Within the block the checker sees only the pairs between the two arms (each with
+        what it holds): each arm's self pairs and its pairs with the table and the objects are
+        filtered, and put back afterwards. Filters set inside the block (a two-handed hold's)
+        are undone with it."""
+        previous = np.array(self.checker.GetFilteredCollisionMatrix(), copy=True)
+        side_of = np.full(self.plant.num_bodies(), -1)
+        for k, side in enumerate(SIDES):
+            for b in self.robot_bodies[side]:
+                side_of[int(b.index())] = k
+        robot = side_of >= 0
+        cross = robot[:, None] & robot[None, :] & (side_of[:, None] != side_of[None, :])
+        only = previous.copy()
+        only[(only == 0) & ~cross] = 1
+        self.checker.SetCollisionFilterMatrix(only)
+        try:
+            yield
+        finally:
+            self.checker.SetCollisionFilterMatrix(previous)
 
     @contextmanager
     def keeping_padding(self) -> Iterator[None]:

@@ -368,3 +368,69 @@ def test_track_may_leave_a_contact_it_starts_in_but_never_press_deeper():
     ctx.q = saved
     with pytest.raises(PlanningError, match="ik_infeasible|ik_collision|path_in_collision"):
         sk.track(ctx, "right", line(-0.005), 0.005, 0.0, label="down")
+
+
+def test_merge_sees_the_object_an_arm_carries():
+    """Between its pick and its release a carried object rides on its hand in the merged
+    check: the other arm reaching into where the lifted bar is carried is rejected (it was
+    invisible to the check before), reaching above it passes."""
+    from pydrake.all import RollPitchYaw, RotationMatrix
+
+    from bicoord_drake.planning.skills.core import carried_spans, combine
+
+    bar = SceneObject(
+        name="bar",
+        shape=BoxShape(size=(0.30, 0.03, 0.03)),
+        color=(0.6, 0.4, 0.2, 1),
+        mass=0.05,
+        pose=Pose(xyz=(-0.14, -0.05, 0.765)),
+    )
+    ctx = sk.SkillContext(PlanningModel(Scene(name="bar", objects=(bar,))))
+    pick = sk.pick(ctx, "left", "bar", kinds=["top"], lift=0.15)
+    X_WB = ctx.model.held_pose("left", ctx.q)
+    down = RotationMatrix(RollPitchYaw(0.0, np.pi / 2, 0.0))
+    q0 = ctx.arm_q("right")
+
+    def reach(dz: float) -> ArmPlan:
+        """The right TCP to `dz` above the carried bar's centre line, 12 cm from its middle."""
+        target = RigidTransform(down, X_WB @ np.array([0.12, 0.0, 0.0]) + [0.0, 0.0, dz])
+        q = ctx.ik.solve_single(
+            "right", TcpTarget(target), q0, seed=ctx.q, clearance=0.03, ignore=["bar"]
+        )[6:]
+        return ArmPlan("right", np.linspace(q0, q, 40), np.ones(40), label=f"reach {dz}")
+
+    into, above = reach(0.0), reach(0.04)
+    (span,) = carried_spans(ctx, combine(pick, into))
+    assert span[:2] == (pick.events[0][0], pick.num_steps - 1) and span[2].side == "left"
+    q_into = ctx.with_arm("right", into.q[-1])
+    ctx.model.set_padding(ctx.clearance, ctx.env_clearance)
+    assert not ctx.model.collision_free(q_into)
+    with ctx.model.ignoring(["bar"]):  # what the check saw before
+        assert ctx.model.collision_free(q_into)
+    with pytest.raises(PlanningError) as info:
+        sk.merge(ctx, pick, into)
+    assert info.value.reason == "arm_conflict"
+    motion = sk.merge(ctx, pick, above)
+    assert motion.num_steps == pick.num_steps  # together, no delay needed
+    assert ctx.model.held["left"].name == "bar"  # the check leaves the model as it was
+    assert ctx.model.collision_free(q_into) is False
+
+
+def test_carried_spans_follow_picks_and_releases():
+    """An object picked, released, or picked and released by one arm is carried from its
+    pick (or the start) to its release (or the end), at the grasp its release pose gives;
+    one passed between the arms is not."""
+    from bicoord_drake.planning.skills.core import Motion, carried_spans
+
+    scene = Scene(name="cubes", objects=(cube("a", -0.15, -0.1), cube("b", 0.12, 0.0)))
+    ctx = sk.SkillContext(PlanningModel(scene))
+    q = np.tile(ctx.q, (10, 1))
+    events = [(2, "left", "attach", "a"), (7, "left", "detach", "a"), (5, "right", "detach", "b")]
+    (a, b) = carried_spans(ctx, Motion(q, np.ones((10, 2)), events))
+    X_WG = ctx.model.gripper_pose(ctx.q, "left")
+    assert a[:2] == (2, 7) and a[2].name == "a" and a[2].side == "left"
+    assert (X_WG @ a[2].X_GO).IsNearlyEqualTo(ctx.model.object_pose("a"), 1e-12)
+    assert b[:2] == (0, 5) and b[2].side == "right"
+    passed = [(2, "left", "detach", "a"), (2, "right", "attach", "a")]
+    assert carried_spans(ctx, Motion(q, np.ones((10, 2)), passed)) == []
+    assert carried_spans(ctx, Motion(q, np.ones((10, 2)), events), ignore=["a", "b"]) == []

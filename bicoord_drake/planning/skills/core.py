@@ -22,7 +22,7 @@ from bicoord_drake.models.embodiment import SIDES
 from bicoord_drake.models.layout import ActionLayout
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.ik import BimanualIK
-from bicoord_drake.planning.model import PlanningModel, bisection_order
+from bicoord_drake.planning.model import HeldObject, PlanningModel, bisection_order
 from bicoord_drake.planning.timing import CONTROL_DT, JointLimits, TimedTrajectory
 
 #: Sub-samples checked between two control samples of a merged motion.
@@ -421,9 +421,13 @@ def _motion_free(
     fingers: bool = False,
 ) -> bool:
     """Check a merged motion densely (MERGE_SUBSTEPS per control period): the arms against
-    each other and the scene. Objects that change hands within the motion are left out;
-    their clearance to the static scene was checked when each arm's plan was made. The
-    fingers are as the model has them, or with `fingers` at :func:`_finger_bounds`.
+    each other and the scene, then each carried object against the other arm.
+
+    First pass: objects picked or released anywhere in the motion are left out; their
+    clearance to the static scene was checked when each arm's plan was made. Second pass
+    (:func:`_carried_free`): between its pick and its release each object one arm carries
+    rides on that hand at its grasp and is checked against the other arm and what that one
+    holds. The fingers are as the model has them, or with `fingers` at :func:`_finger_bounds`.
 
     The samples are checked first, coarse to fine (a colliding merge, as most of
     :func:`merge`'s delays are, is rejected after a few checks), then the substeps between
@@ -434,17 +438,98 @@ def _motion_free(
     if not steps:
         return True
     bounds = _finger_bounds(ctx, motion) if fingers else [None] * motion.num_steps
-    between = np.linspace(0, 1, MERGE_SUBSTEPS + 1)[1:-1]
     with ctx.model.ignoring(moving):
-        for k in bisection_order(len(steps) - 1).astype(int):
-            i = steps[k]
-            if not ctx.model.collision_free(q[i], bounds[i]):
+        if not _steps_free(ctx, q, steps, bounds):
+            return False
+    return _carried_free(ctx, motion, steps, bounds, ignore)
+
+
+def _steps_free(ctx: SkillContext, q: np.ndarray, steps: list[int], bounds: list) -> bool:
+    """Whether the samples q[i], i in `steps`, (coarse to fine) and the MERGE_SUBSTEPS
+    between each and the sample before it are collision-free as the model is now."""
+    between = np.linspace(0, 1, MERGE_SUBSTEPS + 1)[1:-1]
+    for k in bisection_order(len(steps) - 1).astype(int):
+        i = steps[k]
+        if not ctx.model.collision_free(q[i], bounds[i]):
+            return False
+    for i in steps:
+        a, b = q[i - 1], q[i]
+        for s in between:
+            if not ctx.model.collision_free(a + s * (b - a), bounds[i]):
                 return False
-        for i in steps:
-            a, b = q[i - 1], q[i]
-            for s in between:
-                if not ctx.model.collision_free(a + s * (b - a), bounds[i]):
-                    return False
+    return True
+
+
+def carried_spans(
+    ctx: SkillContext, motion: Motion, ignore: Iterable[str] = ()
+) -> list[tuple[int, int, HeldObject]]:
+    """The objects one arm carries in `motion`, as (first, last sample, hold): from its pick
+    (or the start, if it is held then) to its release (or the end), at the grasp the model has
+    (a held object's) or the one its release pose gives at the release sample.
+
+    Only simple carries are found: one arm picks and/or releases the object once. An object
+    both arms hold or pass between them, one picked or released more than once, and those in
+    `ignore` are not carried here (the check leaves them out, as before)."""
+    events: dict[str, list[tuple[int, str, str]]] = {}
+    for i, side, kind, name in motion.events:
+        events.setdefault(name, []).append((i, side, kind))
+    ignore = set(ignore)
+    spans = []
+    for name in sorted(events):
+        evs = sorted(events[name])
+        sides = {side for _, side, _ in evs}
+        kinds = [kind for _, _, kind in evs]
+        if name in ignore or len(sides) != 1:
+            continue
+        (side,) = sides
+        held = ctx.model.held.get(side)
+        if kinds == ["attach"]:
+            if held is None or held.name != name or len(ctx.model.holders(name)) != 1:
+                continue
+            spans.append((evs[0][0], motion.num_steps - 1, held))
+        elif kinds in (["detach"], ["attach", "detach"]):
+            if ctx.model.holders(name):
+                continue
+            last = evs[-1][0]
+            X_GO = ctx.model.gripper_pose(motion.q[last], side).inverse()
+            X_GO = X_GO @ ctx.model.object_pose(name)
+            first = evs[0][0] if kinds[0] == "attach" else 0
+            spans.append((first, last, HeldObject(name, side, X_GO)))
+    return spans
+
+
+def _carried_free(
+    ctx: SkillContext, motion: Motion, steps: list[int], bounds: list, ignore: Iterable[str]
+) -> bool:
+    """Whether every object carried in `motion` (:func:`carried_spans`) keeps the arms'
+    clearance from the other arm, and what that one holds, while it is carried.
+
+    It rides on its hand (as a held object does in the model), and only the pairs between
+    the two arms are checked (:meth:`PlanningModel.arms_only`): its clearance from the scene,
+    its support at the pick and the release included, is the single-arm plan's to check.
+    Objects held throughout the motion stay held; steps are grouped by what is carried."""
+    spans = carried_spans(ctx, motion, ignore)
+    if not spans:
+        return True
+    moved = {name for _, _, _, name in motion.events}
+    base = {s: h for s, h in ctx.model.held.items() if h.name not in moved}
+    groups: dict[tuple, list[int]] = {}
+    for i in steps:
+        key = tuple(k for k, (a, b, _) in enumerate(spans) if a <= i <= b)
+        if key:
+            groups.setdefault(key, []).append(i)
+    with ctx.model.ignoring(ignore), ctx.model.arms_only():
+        for key, group in groups.items():
+            held = dict(base)
+            for k in key:
+                h = spans[k][2]
+                if h.side in held:  # the hand holds something else: not a simple carry
+                    break
+                held[h.side] = h
+            else:
+                with ctx.model.holding(held):
+                    if not _steps_free(ctx, motion.q, group, bounds):
+                        return False
     return True
 
 
