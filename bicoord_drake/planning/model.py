@@ -19,6 +19,10 @@
 - ``set_gripper(side, opening)`` sets the finger opening held fixed while planning.
 - ``ignoring(names)`` is a context manager under which the named objects collide with nothing
   (the object being grasped, or the held object a second gripper takes over).
+- ``holding(held)`` is a context manager under which the grippers hold the given objects at the
+  given grasps instead of what they hold (a merged motion's check carries each object from its
+  pick to its release this way); ``arms_only()`` one under which the checker sees only the pairs
+  between the two arms (each with what it holds).
 
 Configurations: planning uses ``q = [left n arm joints, right n arm joints]`` (n from the
 embodiment: 6 for the ViperX, 7 for the Panda; ``side_slice(side)`` gives one arm's entries);

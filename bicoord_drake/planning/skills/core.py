@@ -366,9 +366,11 @@ def merge(
     """Run both plans at once. With `stretch`, the shorter plan is first slowed to last as
     long as the longer one, so both arms keep acting together; if the arms would then come
     closer than the checker allows, the plans run at their own pace and the later-starting
-    one is delayed (first the right, then the left) until they do not. Objects in `ignore`
-    (e.g. a container one arm steadies while the other reaches into it) are left out of
-    that check.
+    one is delayed (first the right, then the left) until they do not. An object one arm
+    carries is part of that check from its pick to its release (:func:`_carried_free`: on
+    its hand, against the other arm); before its pick and after its release it is left out,
+    as is an object the arms pass between them. Objects in `ignore` (e.g. a container one
+    arm steadies while the other reaches into it) are left out of the whole check.
 
     The check first holds the fingers as the model has them (as a rule the home opening, the
     widest); only if no timing passes that way is it done again with each hand's fingers as
