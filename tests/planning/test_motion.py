@@ -133,6 +133,29 @@ def test_held_object_is_part_of_the_checked_geometry(bar_world):
     assert independently_collision_free(m, path)
 
 
+def test_holding_and_arms_only_change_the_check_only_inside(bar_world):
+    """Under ``holding({})`` the bar lies where it was grasped (the left gripper passes the
+    wall free of it); under ``arms_only()`` the held bar may rest on the table. Afterwards the
+    holds, the anchors and the filters are as they were."""
+    m, q_grasp, q_a, q_b = bar_world
+    m.set_padding(0.0, 0.0)
+    filters = np.array(m.checker.GetFilteredCollisionMatrix(), copy=True)
+    held = m.held
+    assert not m.collision_free(q_grasp)  # the held bar rests on the table
+    with m.arms_only():
+        assert m.collision_free(q_grasp)
+        assert not np.array_equal(m.checker.GetFilteredCollisionMatrix(), filters)
+    with m.holding({}):
+        assert not m.held and m.edge_free(q_a, q_b, 0.01)
+    with m.holding(held):
+        assert not m.edge_free(q_a, q_b, 0.01)
+    with pytest.raises(ValueError):
+        with m.holding({"right": held["left"]}):
+            pass
+    assert m.held == held and not m.edge_free(q_a, q_b, 0.01)
+    np.testing.assert_array_equal(m.checker.GetFilteredCollisionMatrix(), filters)
+
+
 def test_start_in_collision_names_the_pair(bar_world):
     """Right after the grasp the bar still rests on the table."""
     m, q_grasp, q_a, _ = bar_world
