@@ -14,12 +14,14 @@ from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose, Primitive
 from bicoord_drake.models.objects import BoxShape, CompoundShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
+from bicoord_drake.planning.clearance import side_pitch
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import (
     Grasp,
     GraspParams,
     arm_base,
     grasp_candidates,
+    pitched,
     stack_target,
     table_target,
 )
@@ -123,6 +125,10 @@ ARM_GAP = 0.03
 #: the TCP) then clears the table when the cube is set on a sign; a 4 cm cube's pads reach its
 #: top face.
 SIDE_TCP = 0.029
+#: The hand stays this far (m) above the cube's bottom at a side grasp (the ViperX's gripper,
+#: 5 cm tall, at SIDE_TCP); a taller hand pitches its approach down until it does
+#: (:func:`~bicoord_drake.planning.clearance.side_pitch`).
+SIDE_FLOOR = 0.004
 #: The lower cube's arm moves its fingers in only once the upper cube has risen this much (m).
 CLEAR_RISE = 0.025
 #: Most control steps the lower cube's arm is held back beyond that, to keep ARM_GAP.
@@ -511,7 +517,12 @@ def _side_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
     mine = [g for g in grasps if g.approach @ APPROACH[side] >= APPROACH_COS]
     if not mine:
         raise PlanningError("no_grasp", f"no side grasp of {name!r} from the {side}")
-    return mine
+    # a hand taller than twice SIDE_TCP - SIDE_FLOOR: the approach pitched down, by the least
+    # angle that keeps it SIDE_FLOOR above the table when the cube is set on its sign
+    pitch = side_pitch(ctx.model.hand_boxes, SIDE_TCP, SIDE_FLOOR)
+    if pitch is None:
+        raise PlanningError("no_grasp", f"no side grasp of {name!r} keeps the hand off the table")
+    return [pitched(g, X_WO, pitch) for g in mine]
 
 
 def _approach(
