@@ -153,7 +153,9 @@ class DivideBlockTower(Task):
     both near the robot. The cubes are taken off the tower two at a time, top first, and each is
     put on the sign of its colour, the second on the first, so that each sign ends with a
     two-cube tower of its colour. The left arm handles colour A and the right arm colour B, each
-    side-grasping the tower's cubes from its own side (jaws horizontal). Of the two cubes taken
+    side-grasping the tower's cubes from its own side (jaws horizontal; a hand too tall to clear
+    the table so when it sets a cube on a sign pitches its approach down, by the least angle
+    that does, e.g. 12.5 deg for the Franka Hand, 0 for the ViperX). Of the two cubes taken
     at once, the upper one's arm lifts it and pulls it out to its own side; the other arm waits
     beside the cube below and slides its fingers in as soon as the upper cube has risen 2.5 cm
     off it (no earlier, so it never lifts a cube with another on it), then lifts it; each arm
@@ -499,8 +501,8 @@ def _roles(order: list[str]) -> tuple[dict[str, str], dict[str, str]]:
 # -------------------------------------------------------------------- expert helpers
 def _side_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
     """Side grasps of a cube from `side`'s own side of the tower (jaws horizontal), the TCP
-    SIDE_TCP above the cube's bottom (so the gripper clears the table when it is set down),
-    best first."""
+    SIDE_TCP above the cube's bottom (so the gripper clears the table when it is set down;
+    pitched down where the hand is too tall for that, see SIDE_FLOOR), best first."""
     X_WO = ctx.model.object_pose(name)
     shape = ctx.model.object(name).shape
     params = GraspParams(
