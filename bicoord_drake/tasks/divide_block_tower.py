@@ -568,13 +568,40 @@ def _approach(
                 except PlanningError:
                     plan = None
             if plan is None:
-                plan = move(ctx, side, q_goal, label=f"approach {name}")
+                plan = _planned_approach(ctx, side, q_goal, f"approach {name}")
             if chosen is not None:
                 chosen[name] = grasp
             return plan
         except PlanningError as err:
             reasons.append(err.reason)
     raise PlanningError("approach_failed", f"{side} cannot come beside {name!r} ({reasons})")
+
+
+def _planned_approach(ctx: SkillContext, side: str, q_goal: np.ndarray, label: str) -> ArmPlan:
+    """A planned move of `side` to `q_goal`; replanned to keep the skills' environment
+    clearance where the first path grazes the table or a fixed object (a hand that touches the
+    table on its way lags behind its command and jams there)."""
+    start = ctx.q.copy()
+    plan = move(ctx, side, q_goal, label=label)
+    if _env_gap(ctx, start, plan) >= ctx.env_clearance:
+        return plan
+    ctx.q = start
+    return move(ctx, side, q_goal, label=label, env_clearance=ctx.env_clearance)
+
+
+def _env_gap(ctx: SkillContext, start: np.ndarray, plan: ArmPlan) -> float:
+    """The least distance (m) of `plan`'s arm to the table and the fixed objects along it (the
+    other arm as in `start`; within ctx.env_clearance, else ctx.env_clearance)."""
+    fixed = {"table_top"} | {o.name for o in ctx.model.scene.objects if o.fixed and o.collide}
+    q = start.copy()
+    gap = ctx.env_clearance
+    with ctx.model.padded(0.0, 0.0):
+        for q_arm in plan.q:
+            q[ctx.model.side_slice(plan.side)] = q_arm
+            for _, other, d in ctx.model.colliding_pairs(q, ctx.env_clearance):
+                if other in fixed:
+                    gap = min(gap, d)
+    return gap
 
 
 def _standoff(
