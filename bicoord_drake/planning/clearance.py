@@ -80,6 +80,23 @@ def hands_gap(boxes, X_a: RigidTransform, X_b: RigidTransform) -> float:
     return points_to_boxes(_transform(X_b.inverse() @ X_a, points), boxes)
 
 
+def side_pitch(
+    boxes, tcp_height: float, floor: float, step: float = 0.0436, limit: float = 0.524
+) -> float | None:
+    """The least pitch (rad, multiples of `step` up to `limit`; 0 first) of a side grasp whose
+    TCP is `tcp_height` (m) above the support that keeps the hand (`boxes` in the TCP frame, as
+    ``ArmSpec.hand_boxes``) `floor` (m) above it when the object is set down: the approach
+    tilted down about the jaw axis, so that what lies behind the fingers rises. None if no
+    pitch up to `limit` does."""
+    corners = np.vstack([_corners(lo, hi) for lo, hi in boxes])
+    for k in range(int(round(limit / step)) + 1):
+        a = k * step
+        z = tcp_height - corners[:, 0] * np.sin(a) + corners[:, 2] * np.cos(a)
+        if float(np.min(z)) >= floor - MARGIN_TOL:
+            return a
+    return None
+
+
 class HandRoom:
     """The room around the hand of `side` with the model at joint angles `q`: objects in
     `exclude` (the object being grasped, what is ignored) and what `side` holds are left out."""

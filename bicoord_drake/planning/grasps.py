@@ -217,6 +217,25 @@ def _make(
     return Grasp(kind, X_WG, X_WPre, X_WO.inverse() @ X_WG, float(width), float(score))
 
 
+def pitched(grasp: Grasp, X_WO: RigidTransform, angle: float) -> Grasp:
+    """`grasp` (a horizontal approach) with its approach tilted `angle` (rad) down about its
+    jaw axis through the TCP: the pads stay on the same faces, the wrist rises behind them.
+    The pregrasp keeps its distance, along the new approach."""
+    if angle == 0.0:
+        return grasp
+    R = grasp.X_WG.rotation()
+    x = R.col(0)
+    k = np.cross(_UP, x)
+    if np.linalg.norm(k) < 1e-9:
+        raise PlanningError("no_grasp", "a vertical approach has no pitch down")
+    turn = RotationMatrix(AngleAxis(angle, k / np.linalg.norm(k)))
+    p = grasp.X_WG.translation()
+    X_WG = RigidTransform(turn @ R, p)
+    d = float(np.linalg.norm(p - grasp.X_WPre.translation()))
+    X_WPre = RigidTransform(X_WG.rotation(), p - d * X_WG.rotation().col(0))
+    return Grasp(grasp.kind, X_WG, X_WPre, X_WO.inverse() @ X_WG, grasp.width, grasp.score)
+
+
 def _top_depth(height: float, gripper: GripperSpec, params: GraspParams) -> float | None:
     """TCP depth below the top face for a top grasp, or None if the object is too flat."""
     half_pad = gripper.pad_length / 2

@@ -14,12 +14,14 @@ from bicoord_drake.models.embodiment import other_side
 from bicoord_drake.models.geometry import Pose, Primitive
 from bicoord_drake.models.objects import BoxShape, CompoundShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
+from bicoord_drake.planning.clearance import side_pitch
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import (
     Grasp,
     GraspParams,
     arm_base,
     grasp_candidates,
+    pitched,
     stack_target,
     table_target,
 )
@@ -123,6 +125,10 @@ ARM_GAP = 0.03
 #: the TCP) then clears the table when the cube is set on a sign; a 4 cm cube's pads reach its
 #: top face.
 SIDE_TCP = 0.029
+#: The hand stays this far (m) above the cube's bottom at a side grasp (the ViperX's gripper,
+#: 5 cm tall, at SIDE_TCP); a taller hand pitches its approach down until it does
+#: (:func:`~bicoord_drake.planning.clearance.side_pitch`).
+SIDE_FLOOR = 0.004
 #: The lower cube's arm moves its fingers in only once the upper cube has risen this much (m).
 CLEAR_RISE = 0.025
 #: Most control steps the lower cube's arm is held back beyond that, to keep ARM_GAP.
@@ -147,7 +153,9 @@ class DivideBlockTower(Task):
     both near the robot. The cubes are taken off the tower two at a time, top first, and each is
     put on the sign of its colour, the second on the first, so that each sign ends with a
     two-cube tower of its colour. The left arm handles colour A and the right arm colour B, each
-    side-grasping the tower's cubes from its own side (jaws horizontal). Of the two cubes taken
+    side-grasping the tower's cubes from its own side (jaws horizontal; a hand too tall to clear
+    the table so when it sets a cube on a sign pitches its approach down, by the least angle
+    that does, e.g. 12.5 deg for the Franka Hand, 0 for the ViperX). Of the two cubes taken
     at once, the upper one's arm lifts it and pulls it out to its own side; the other arm waits
     beside the cube below and slides its fingers in as soon as the upper cube has risen 2.5 cm
     off it (no earlier, so it never lifts a cube with another on it), then lifts it; each arm
@@ -493,8 +501,8 @@ def _roles(order: list[str]) -> tuple[dict[str, str], dict[str, str]]:
 # -------------------------------------------------------------------- expert helpers
 def _side_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
     """Side grasps of a cube from `side`'s own side of the tower (jaws horizontal), the TCP
-    SIDE_TCP above the cube's bottom (so the gripper clears the table when it is set down),
-    best first."""
+    SIDE_TCP above the cube's bottom (so the gripper clears the table when it is set down;
+    pitched down where the hand is too tall for that, see SIDE_FLOOR), best first."""
     X_WO = ctx.model.object_pose(name)
     shape = ctx.model.object(name).shape
     params = GraspParams(
@@ -511,7 +519,12 @@ def _side_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
     mine = [g for g in grasps if g.approach @ APPROACH[side] >= APPROACH_COS]
     if not mine:
         raise PlanningError("no_grasp", f"no side grasp of {name!r} from the {side}")
-    return mine
+    # a hand taller than twice SIDE_TCP - SIDE_FLOOR: the approach pitched down, by the least
+    # angle that keeps it SIDE_FLOOR above the table when the cube is set on its sign
+    pitch = side_pitch(ctx.model.hand_boxes, SIDE_TCP, SIDE_FLOOR)
+    if pitch is None:
+        raise PlanningError("no_grasp", f"no side grasp of {name!r} keeps the hand off the table")
+    return [pitched(g, X_WO, pitch) for g in mine]
 
 
 def _approach(
@@ -555,13 +568,40 @@ def _approach(
                 except PlanningError:
                     plan = None
             if plan is None:
-                plan = move(ctx, side, q_goal, label=f"approach {name}")
+                plan = _planned_approach(ctx, side, q_goal, f"approach {name}")
             if chosen is not None:
                 chosen[name] = grasp
             return plan
         except PlanningError as err:
             reasons.append(err.reason)
     raise PlanningError("approach_failed", f"{side} cannot come beside {name!r} ({reasons})")
+
+
+def _planned_approach(ctx: SkillContext, side: str, q_goal: np.ndarray, label: str) -> ArmPlan:
+    """A planned move of `side` to `q_goal`; replanned to keep the skills' environment
+    clearance where the first path grazes the table or a fixed object (a hand that touches the
+    table on its way lags behind its command and jams there)."""
+    start = ctx.q.copy()
+    plan = move(ctx, side, q_goal, label=label)
+    if _env_gap(ctx, start, plan) >= ctx.env_clearance:
+        return plan
+    ctx.q = start
+    return move(ctx, side, q_goal, label=label, env_clearance=ctx.env_clearance)
+
+
+def _env_gap(ctx: SkillContext, start: np.ndarray, plan: ArmPlan) -> float:
+    """The least distance (m) of `plan`'s arm to the table and the fixed objects along it (the
+    other arm as in `start`; within ctx.env_clearance, else ctx.env_clearance)."""
+    fixed = {"table_top"} | {o.name for o in ctx.model.scene.objects if o.fixed and o.collide}
+    q = start.copy()
+    gap = ctx.env_clearance
+    with ctx.model.padded(0.0, 0.0):
+        for q_arm in plan.q:
+            q[ctx.model.side_slice(plan.side)] = q_arm
+            for _, other, d in ctx.model.colliding_pairs(q, ctx.env_clearance):
+                if other in fixed:
+                    gap = min(gap, d)
+    return gap
 
 
 def _standoff(

@@ -11,9 +11,9 @@ from pydrake.math import RigidTransform
 from bicoord_drake.models.embodiment import aloha_viperx
 from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import Scene, cube
-from bicoord_drake.planning.clearance import hands_gap, roomy_first
+from bicoord_drake.planning.clearance import hands_gap, roomy_first, side_pitch
 from bicoord_drake.planning.errors import PlanningError
-from bicoord_drake.planning.grasps import arm_base, grasp_candidates
+from bicoord_drake.planning.grasps import arm_base, grasp_candidates, pitched
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import SkillContext, hold, plan_both
 from bicoord_drake.planning.skills.pick_place import hand_params, roomy_grasps
@@ -53,6 +53,34 @@ def test_hands_gap_reads_the_finger_axis():
     assert hands_gap(boxes, at, RigidTransform([0.0, 0.25, 0.0])) == pytest.approx(0.05, abs=0.005)
     assert hands_gap(boxes, at, RigidTransform([0.0, 0.15, 0.0])) == 0.0
     assert hands_gap(boxes, at, RigidTransform([0.0, 0.0, 0.1])) == pytest.approx(0.012, abs=0.005)
+
+
+def test_side_pitch_lifts_a_tall_hand_off_the_support():
+    """A side grasp 2.9 cm above the support: the ViperX's gripper (2.5 cm half height) keeps
+    4 mm level; the Franka Hand (link 7, r 4.4 cm) must pitch down ~12.5 deg to keep it."""
+    viperx, franka = aloha_viperx().arm, get_embodiment("franka_pair").arm
+    assert side_pitch(viperx.hand_boxes(), 0.029, 0.004) == 0.0
+    a = side_pitch(franka.hand_boxes(), 0.029, 0.004)
+    assert a == pytest.approx(np.radians(12.5), abs=0.01)
+    assert side_pitch(franka.hand_boxes(), 0.029, 0.004, limit=0.1) is None
+
+
+def test_pitched_grasp_keeps_the_pads_and_tilts_down():
+    X_WO = RigidTransform([0.0, 0.0, 0.8])
+    grasp = grasp_candidates(
+        cube("c", 0.0, 0.0, size=0.04), aloha_viperx().arm.gripper, X_WO=X_WO, kinds=["side"]
+    )[0]
+    assert pitched(grasp, X_WO, 0.0) is grasp
+    tilted = pitched(grasp, X_WO, 0.2)
+    R0, R1 = grasp.X_WG.rotation().matrix(), tilted.X_WG.rotation().matrix()
+    assert np.allclose(R1[:, 1], R0[:, 1])  # the jaw axis (the pads' faces) unchanged
+    assert np.allclose(tilted.X_WG.translation(), grasp.X_WG.translation())
+    assert tilted.approach[2] == pytest.approx(-np.sin(0.2))  # down
+    pre = tilted.X_WG.translation() - tilted.X_WPre.translation()
+    assert np.linalg.norm(pre) == pytest.approx(
+        np.linalg.norm(grasp.X_WG.translation() - grasp.X_WPre.translation())
+    )
+    assert np.allclose((X_WO @ tilted.X_OG).GetAsMatrix4(), tilted.X_WG.GetAsMatrix4())
 
 
 def test_roomy_first_keeps_order_and_moves_crowded_ones_back():

@@ -27,12 +27,14 @@ def move(
     ignore: Iterable[str] = (),
     straight: bool = False,
     clearance: float | None = None,
+    env_clearance: float = 0.0,
 ) -> ArmPlan:
     """A collision-checked, timed joint path of one arm (the other stays where it is); not
     while both hands hold one object.
 
     A `clearance` (m) between the arms, if given, is checked with no environment margin
-    (close two-arm work such as a handover)."""
+    (close two-arm work such as a handover). A planned (not `straight`) path keeps
+    `env_clearance` (m) from the environment."""
     from bicoord_drake.planning.motion import plan_path
 
     together = ctx.model.held_together
@@ -55,7 +57,13 @@ def move(
     else:
         kwargs = {} if clearance is None else {"clearance": clearance * 0.8}
         waypoints = plan_path(
-            ctx.model, start, goal, arms=(side,), ignore=ignore, env_clearance=0.0, **kwargs
+            ctx.model,
+            start,
+            goal,
+            arms=(side,),
+            ignore=ignore,
+            env_clearance=env_clearance,
+            **kwargs,
         )
     traj = time_path(waypoints[:, ctx.model.side_slice(side)], ctx.arm_limits, ctx.dt)
     ctx.q = goal
