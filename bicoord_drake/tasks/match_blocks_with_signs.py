@@ -27,6 +27,7 @@ from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
     SkillContext,
+    first_step_in_zone,
     handover,
     hold,
     merge,
@@ -34,6 +35,7 @@ from bicoord_drake.planning.skills import (
     pick,
     place,
     retreat,
+    slowed_after,
     solve_tcp,
 )
 from bicoord_drake.stages import Stage
@@ -105,6 +107,9 @@ BACK_OFF = 0.10
 RELEASE_STEPS = 10
 #: The left arm has retreated once its TCP is this far (m) from the last cuboid.
 RETREATED = 0.15
+#: After the last handover the left's way home keeps its own pace until its TCP is this far
+#: (xy, m) from where it let go (then it is timed to end with the right's return).
+LEAVE_ZONE = 0.25
 SETTLE_STEPS = 8
 
 
@@ -122,7 +127,8 @@ class MatchBlocksWithSigns(Task):
     the left already picks the next cuboid. The handover and the placement are planned
     together: the right's grasp at the meeting is taken only if the right can stand the cuboid
     on its square with it (the cuboid upright, the grasp top-down). After the last handover
-    the left retreats while the right places. The spec's layout is kept except the squares'
+    the left goes home while the right places and goes home (the left's way back timed to
+    end with the right's once it is clear of the meeting). The spec's layout is kept except the squares'
     y slots, moved 2-4 cm toward the robot (from 0.15, 0.03, -0.10): our right arm cannot hold
     a standing 12 cm cuboid top-down above y = 0.15.
 
@@ -279,12 +285,30 @@ class MatchBlocksWithSigns(Task):
                     right = stand_up(ctx, name, squares[name])
                     motion = merge(ctx, pick_near_end(ctx, order[k + 1]), right)
             else:
-                right = stand_up(ctx, name, squares[name])
-                motion = merge(ctx, retreat(ctx, "left"), right)
+                motion = _stand_last(ctx, name, squares[name])
             yield from run(motion)
-        yield from run(merge(ctx, None, retreat(ctx, "right")))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
+
+
+def _stand_last(ctx: SkillContext, name: str, square_xy: Sequence[float]) -> Motion:
+    """R stands the last cuboid on its square and goes home while L goes home from the
+    meeting: L's way back runs at its own pace until its TCP is LEAVE_ZONE (xy) from where it
+    let go, then is slowed (:func:`slowed_after`, the same path) to end with R's return, so
+    neither arm stands idle while the other finishes. If the two would meet, the arms go one
+    after the other as before (L home during the stand-up, then R home)."""
+    right = stand_up(ctx, name, square_xy)
+    left = retreat(ctx, "left")
+    right_home = retreat(ctx, "right")
+    start = ctx.model.tcp_pose(ctx.with_arm("left", left.q[0]), "left").translation()
+    out = first_step_in_zone(ctx, left, start[:2], LEAVE_ZONE, inside=False)
+    both_home = right.then(right_home)
+    try:
+        return merge(ctx, slowed_after(left, out, both_home.num_steps), both_home)
+    except PlanningError as err:
+        if err.reason != "arm_conflict":
+            raise
+    return merge(ctx, left, right).then(merge(ctx, None, right_home))
 
 
 # -------------------------------------------------------------------- scene parts

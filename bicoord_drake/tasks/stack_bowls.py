@@ -21,6 +21,7 @@ from bicoord_drake.planning.skills import (
     SkillContext,
     arrive_as_leaves,
     hold,
+    leave_as_arrives,
     merge,
     move_tcp,
     pick,
@@ -105,8 +106,9 @@ class StackBowls(Task):
     own side; the first arm sets its bowl on the spot while the other carries its bowl to a
     waiting point beside it; then the second arm nests its bowl in the first while the first
     arm picks its second bowl; the first arm nests that one while the second picks its last
-    bowl; the second nests the last bowl while the first retreats. Which arm goes first is
-    drawn per seed.
+    bowl; the second nests the last bowl while the first retreats (out of the spot's zone at
+    its own pace, then timed to arrive home as the nest ends). Which arm goes first is drawn
+    per seed.
 
     Randomization: which arm goes first; bowl positions |x| in [0.09, 0.3] on their side, y in
     [-0.15, 0.15], at least 13 cm apart and 13 cm from the spot (the reference's layout); the
@@ -259,9 +261,13 @@ class StackBowls(Task):
         # ---- stage 4: the second arm leaves to pick its last bowl; the first nests its bowl
         leaver = _pick(ctx, second, b4)
         yield from run(swap(leaver, place(ctx, first, _nest_goal(ctx, b2), **NEST)))
-        # ---- stage 5: the first arm retreats while the second nests the last bowl
+        # ---- stage 5: the first arm retreats while the second nests the last bowl; its way
+        # home, once out of the spot's zone, is timed to end with the nest (leave_as_arrives)
         leaver = retreat(ctx, first)
-        yield from run(swap(leaver, place(ctx, second, _nest_goal(ctx, b3), **NEST)))
+        placer = place(ctx, second, _nest_goal(ctx, b3), **NEST)
+        yield from run(
+            leave_as_arrives(ctx, leaver, placer, SPOT_XY, CLEAR_RADIUS, lag_steps=CLEAR_STEPS)
+        )
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
