@@ -84,6 +84,11 @@ VARIANTS: dict[str, dict] = {
     # ... with the bowls (and plates, cups, skillets: BowlShape) and pots rigid-hydroelastic.
     "rigid bowls+pots": {"rigid_object_kinds": ("bowl", "pot")},
     "rigid bowls": {"rigid_object_kinds": ("bowl",)},
+    # Pads ten times stiffer than the robots' 2 MPa (a rigid wall jolted into a 2 MPa pad can
+    # cross its middle and wedge in the finger; see "Rigid-hydroelastic bowls and pots"), alone
+    # and with the bowls and pots rigid.
+    "stiff pads": {"pad_modulus": 2e7},
+    "stiff pads + rigid bowls+pots": {"pad_modulus": 2e7, "rigid_object_kinds": ("bowl", "pot")},
 }
 
 

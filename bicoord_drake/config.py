@@ -158,6 +158,12 @@ class StationConfig(BaseModel):
         "finger pads stay compliant, so a grasp still presses a pressure field, and rigid-rigid "
         "pairs (wall on table, bowl in bowl) fall back to point contact",
     )
+    pad_modulus: float | None = Field(
+        None,
+        gt=0,
+        description="hydroelastic modulus of the finger pads, Pa; None: the robot's own "
+        "(GripperSpec.pad_modulus). A physics setting for measuring stiffer pads closed loop",
+    )
     control_rate: float = Field(15.0, gt=0, le=1000, description="control/recording rate, Hz")
     gravity_compensation: bool = True
     kp_scale: float = Field(1.0, gt=0, le=100, description="scales every arm PD stiffness")

@@ -287,6 +287,14 @@ class Embodiment(BaseModel):
         q = list(self.home) + [self.home_opening]
         return np.array(q + q, dtype=float)
 
+    def with_pad_modulus(self, modulus: float | None) -> Embodiment:
+        """This robot with its finger pads' hydroelastic modulus (Pa) set to `modulus` (a
+        physics setting, ``StationConfig.pad_modulus``); None: unchanged."""
+        if modulus is None:
+            return self
+        gripper = self.arm.gripper.model_copy(update={"pad_modulus": float(modulus)})
+        return self.model_copy(update={"arm": self.arm.model_copy(update={"gripper": gripper})})
+
     def action_speed_limits(self) -> np.ndarray:
         """The fastest each action entry may change (per s), in the action's layout: each
         joint's velocity limit (rad/s) and the gripper's opening rate."""

@@ -205,7 +205,7 @@ def _set_hydroelastic_margin(plant: MultibodyPlant, scene_graph: SceneGraph, mar
 def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
     """Build the simulation diagram for `scene` (see the module docstring for its ports)."""
     config = config or StationConfig()
-    embodiment = get_embodiment(config.embodiment)
+    embodiment = get_embodiment(config.embodiment).with_pad_modulus(config.pad_modulus)
     builder = DiagramBuilder()
     plant, scene_graph = AddMultibodyPlant(
         MultibodyPlantConfig(

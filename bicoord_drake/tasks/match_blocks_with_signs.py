@@ -128,9 +128,9 @@ class MatchBlocksWithSigns(Task):
     together: the right's grasp at the meeting is taken only if the right can stand the cuboid
     on its square with it (the cuboid upright, the grasp top-down). After the last handover
     the left goes home while the right places and goes home (the left's way back timed to
-    end with the right's once it is clear of the meeting). The spec's layout is kept except the squares'
-    y slots, moved 2-4 cm toward the robot (from 0.15, 0.03, -0.10): our right arm cannot hold
-    a standing 12 cm cuboid top-down above y = 0.15.
+    end with the right's once it is clear of the meeting). The spec's layout is kept except
+    the squares' y slots, moved 2-4 cm toward the robot (from 0.15, 0.03, -0.10): our right
+    arm cannot hold a standing 12 cm cuboid top-down above y = 0.15.
 
     Randomization: the order of the cuboids in the three x slots and of the squares in the
     three y slots; each cuboid's centre within 1 cm and its yaw within +-0.1 rad of its slot;

@@ -6,6 +6,7 @@ from pydantic import ValidationError
 from pydrake.all import Role
 
 from bicoord_drake.config import CameraConfig, StationConfig, parse_resolution
+from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import demo_scene
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import build_station
@@ -229,3 +230,25 @@ def test_rigid_object_kinds_make_those_objects_rigid_hydroelastic():
     assert _has_modulus(rigid, "red_cube") == {True}
     with pytest.raises(ValidationError, match="rigid_object_kinds"):
         StationConfig(rigid_object_kinds=("box",))
+
+
+def _pad_moduli(station) -> list[float]:
+    """The hydroelastic modulus of every finger pad geometry (both arms, both fingers)."""
+    inspector = station.scene_graph.model_inspector()
+    return [
+        inspector.GetProximityProperties(g).GetProperty("hydroelastic", "hydroelastic_modulus")
+        for g in inspector.GetAllGeometryIds(Role.kProximity)
+        if "pad" in inspector.GetName(g)
+    ]
+
+
+def test_pad_modulus_overrides_the_robots_pads_only():
+    scene = demo_scene("cubes")
+    own = _pad_moduli(build_station(scene, StationConfig(render=False)))
+    stiff = build_station(scene, StationConfig(render=False, pad_modulus=2e7))
+    assert len(own) == 4 and set(own) == {2e6}  # the ViperX's GripperSpec.pad_modulus
+    assert _pad_moduli(stiff) == [2e7] * 4
+    assert stiff.embodiment.arm.gripper.pad_modulus == 2e7  # the station says what it built
+    assert get_embodiment("aloha_viperx").arm.gripper.pad_modulus == 2e6  # the registry's robot
+    with pytest.raises(ValidationError, match="pad_modulus"):
+        StationConfig(pad_modulus=0.0)
