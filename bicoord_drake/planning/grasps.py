@@ -236,6 +236,19 @@ def pitched(grasp: Grasp, X_WO: RigidTransform, angle: float) -> Grasp:
     return Grasp(grasp.kind, X_WG, X_WPre, X_WO.inverse() @ X_WG, grasp.width, grasp.score)
 
 
+def slid(grasp: Grasp, X_WO: RigidTransform, offset: float) -> Grasp:
+    """`grasp` moved `offset` (m) along its z axis (across both the approach and the jaw axis:
+    along the object, between the same two faces), orientation and pregrasp distance kept.
+    A wide hand whose housing meets a neighbour at the object's middle may find room nearer
+    one end."""
+    if offset == 0.0:
+        return grasp
+    shift = offset * grasp.X_WG.rotation().col(2)
+    X_WG = RigidTransform(grasp.X_WG.rotation(), grasp.X_WG.translation() + shift)
+    X_WPre = RigidTransform(grasp.X_WPre.rotation(), grasp.X_WPre.translation() + shift)
+    return Grasp(grasp.kind, X_WG, X_WPre, X_WO.inverse() @ X_WG, grasp.width, grasp.score)
+
+
 def _top_depth(height: float, gripper: GripperSpec, params: GraspParams) -> float | None:
     """TCP depth below the top face for a top grasp, or None if the object is too flat."""
     half_pad = gripper.pad_length / 2
