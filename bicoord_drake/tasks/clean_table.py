@@ -29,7 +29,7 @@ from bicoord_drake.planning.grasps import (
     arm_base,
     bounding_box_grasps,
     box_grasps,
-    slid,
+    slid_grasps,
 )
 from bicoord_drake.planning.skills import (
     ArmPlan,
@@ -372,22 +372,13 @@ def _pick(ctx: SkillContext, side: str, name: str) -> ArmPlan:
 
 
 def _slid_grasps(ctx: SkillContext, name: str, grasps: list[Grasp]) -> list[Grasp]:
-    """`grasps` slid by each of SLIDES (m) either way along the object (:func:`slid`), the
-    smaller slides first, where the pads (``GripperSpec.pad_height`` along the slide) stay
-    that far inside the ends of the object's bounding box."""
+    """`grasps` slid by each of SLIDES (m) either way along the object (:func:`slid_grasps`),
+    the smaller slides first, where the pads (``GripperSpec.pad_height`` along the slide)
+    stay that far inside the ends of the object."""
     obj = ctx.model.object(name)
-    X_WO = ctx.model.object_pose(name)
-    pad = ctx.model.embodiment.arm.gripper.pad_height
     pts = np.concatenate([p.trimesh().vertices for p in obj.shape.primitives()])
-    pts_W = pts @ X_WO.rotation().matrix().T + X_WO.translation()
-    out = []
-    for s in SLIDES:
-        for g in grasps:
-            along = (pts_W - g.X_WG.translation()) @ g.X_WG.rotation().col(2)
-            for offset in (s, -s):
-                if along.min() + pad <= offset <= along.max() - pad:
-                    out.append(slid(g, X_WO, offset))
-    return out
+    pad = ctx.model.embodiment.arm.gripper.pad_height
+    return slid_grasps(grasps, ctx.model.object_pose(name), pts, SLIDES, pad)
 
 
 def _drop(ctx: SkillContext, side: str, k: int) -> ArmPlan:

@@ -49,12 +49,15 @@ def pick(
     kinds: Sequence[str] | None = None,
     grasps: Sequence[Grasp] | None = None,
     approach_opening: float | None = None,
+    close_opening: float = 0.0,
 ) -> ArmPlan:
     """Approach, grasp and lift object `name` with `side`; it is attached afterwards.
 
     `grasps` (best first) replaces the generated candidates, e.g. for one part of a
     compound object. With `approach_opening` the jaw narrows to that opening during the
-    approach (so a finger entering a container stays by its wall)."""
+    approach (so a finger entering a container stays by its wall). The gripper closes to
+    the command `close_opening` (default fully closed: the fingers squeeze the object as hard
+    as their stiffness and force limit let them)."""
     X_WO = ctx.model.object_pose(name)
     if grasps is None:
         base = arm_base(ctx.model.embodiment, side)
@@ -82,7 +85,7 @@ def pick(
                 approach.opening = approach.opening + ramp * (approach_opening - approach.opening)
                 ctx.opening[side] = approach_opening
             descend = move(ctx, side, q_grasp, label="descend", ignore=[name], straight=True)
-            close = grip(ctx, side, 0.0, label="close")
+            close = grip(ctx, side, close_opening, label="close")
             ctx.model.attach(name, side, ctx.q)
             up = move(ctx, side, q_lift, label="lift", ignore=[name], straight=True)
         except PlanningError as err:
