@@ -236,6 +236,40 @@ def pitched(grasp: Grasp, X_WO: RigidTransform, angle: float) -> Grasp:
     return Grasp(grasp.kind, X_WG, X_WPre, X_WO.inverse() @ X_WG, grasp.width, grasp.score)
 
 
+def slid(grasp: Grasp, X_WO: RigidTransform, offset: float) -> Grasp:
+    """`grasp` moved `offset` (m) along its z axis (across both the approach and the jaw axis:
+    along the object, between the same two faces), orientation and pregrasp distance kept.
+    A wide hand whose housing meets a neighbour at the object's middle may find room nearer
+    one end."""
+    if offset == 0.0:
+        return grasp
+    shift = offset * grasp.X_WG.rotation().col(2)
+    X_WG = RigidTransform(grasp.X_WG.rotation(), grasp.X_WG.translation() + shift)
+    X_WPre = RigidTransform(grasp.X_WPre.rotation(), grasp.X_WPre.translation() + shift)
+    return Grasp(grasp.kind, X_WG, X_WPre, X_WO.inverse() @ X_WG, grasp.width, grasp.score)
+
+
+def slid_grasps(
+    grasps: Sequence[Grasp],
+    X_WO: RigidTransform,
+    points_O: np.ndarray,
+    slides: Sequence[float],
+    keep: float,
+) -> list[Grasp]:
+    """`grasps` slid (:func:`slid`) by each of `slides` (m), smaller first, either way, where
+    the object (`points_O`, (N, 3) points of it in its frame) still reaches `keep` (m, e.g.
+    the pads' height) past the slid TCP at both ends along the slide."""
+    pts_W = points_O @ X_WO.rotation().matrix().T + X_WO.translation()
+    out = []
+    for s in slides:
+        for g in grasps:
+            along = (pts_W - g.X_WG.translation()) @ g.X_WG.rotation().col(2)
+            for offset in (s, -s):
+                if along.min() + keep <= offset <= along.max() - keep:
+                    out.append(slid(g, X_WO, offset))
+    return out
+
+
 def _top_depth(height: float, gripper: GripperSpec, params: GraspParams) -> float | None:
     """TCP depth below the top face for a top grasp, or None if the object is too flat."""
     half_pad = gripper.pad_length / 2

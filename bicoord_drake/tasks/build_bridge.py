@@ -9,11 +9,15 @@ from functools import partial
 import numpy as np
 from pydrake.all import RigidTransform, RollPitchYaw
 
-from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.models.embodiment import SIDES, other_side
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene, cube
+from bicoord_drake.planning.clearance import hands_gap, roomy_first
+from bicoord_drake.planning.errors import PlanningError
+from bicoord_drake.planning.grasps import Grasp, arm_base, grasp_candidates
 from bicoord_drake.planning.skills import (
+    ArmPlan,
     SkillContext,
     carry_together,
     hold,
@@ -25,6 +29,7 @@ from bicoord_drake.planning.skills import (
     release_together,
     retreat,
 )
+from bicoord_drake.planning.skills.pick_place import hand_params
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     all_of,
@@ -239,7 +244,15 @@ class BuildBridge(Task):
         picks = {
             side: partial(pick, ctx, side, pier) for side, pier in zip(SIDES, PIERS, strict=True)
         }
-        yield from run(merge(ctx, *plan_both(ctx, picks)))
+        try:
+            both = plan_both(ctx, picks)
+        except PlanningError:  # the hands meet over the piers: grasps that keep them apart
+            apart = {
+                side: partial(_pick_apart, ctx, side, pier, other)
+                for side, pier, other in zip(SIDES, PIERS, PIERS[::-1], strict=True)
+            }
+            both = plan_both(ctx, apart)
+        yield from run(merge(ctx, *both))
         # ---- stage 2: both set their cube at its pier spot, square to the beam, at once
         goals = {
             p: RigidTransform([x, y, TABLE_TOP + side / 2])
@@ -270,3 +283,46 @@ class BuildBridge(Task):
         away = merge(ctx, retreat(ctx, "left"), retreat(ctx, "right"))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from away.then(final).actions()
+
+
+# -------------------------------------------------------------------- expert helpers
+#: Lifts (m) tried by :func:`_pick_apart`, least first (pick's default first).
+APART_LIFTS = (0.10, 0.15, 0.20)
+
+
+def _pier_grasps(ctx: SkillContext, side: str, pier: str) -> list[Grasp]:
+    """The grasps `pick` would generate for `pier` with `side` (best first)."""
+    return grasp_candidates(
+        ctx.model.object(pier),
+        ctx.model.embodiment.arm.gripper,
+        X_WO=ctx.model.object_pose(pier),
+        base=arm_base(ctx.model.embodiment, side),
+        params=hand_params(ctx),
+    )
+
+
+def _pick_apart(ctx: SkillContext, side: str, pier: str, other: str) -> ArmPlan:
+    """Pick `pier` with `side` and lift it out of the other hand's way. The piers stand
+    14-15 cm apart, too close for two wide hands to hold both at once, so the arm planned
+    first (the other holding nothing yet) lifts its pier by the least of APART_LIFTS (m) at
+    which its hand (``ArmSpec.hand_boxes``) keeps the arms' clearance (``ctx.clearance``)
+    from the other hand at one of its grasps of `other` and their pregrasps
+    (:func:`hands_gap`), by the grasps that do first; the arm planned second picks plainly
+    (:func:`pick`), around the first's lifted hand."""
+    them = other_side(side)
+    if them in ctx.model.held:  # planned second: around the other's lifted hand
+        return pick(ctx, side, pier)
+    boxes = ctx.model.hand_boxes
+    mine = _pier_grasps(ctx, side, pier)
+    theirs = _pier_grasps(ctx, them, other)
+
+    def margin(g: Grasp, lift: float) -> float:
+        up = RigidTransform(g.X_WG.rotation(), g.X_WG.translation() + [0.0, 0.0, lift])
+        gaps = [min(hands_gap(boxes, up, X) for X in (h.X_WG, h.X_WPre)) for h in theirs]
+        return max(gaps, default=float("inf")) - ctx.clearance
+
+    for lift in APART_LIFTS:
+        margins = [margin(g, lift) for g in mine]
+        if max(margins, default=0.0) >= 0.0:
+            break
+    return pick(ctx, side, pier, lift=lift, grasps=roomy_first(mine, margins))

@@ -19,7 +19,13 @@ from bicoord_drake.models.objects import SceneObject
 from bicoord_drake.models.pens import PenShape, max_lean, pen_holder, random_pen
 from bicoord_drake.models.scene import TABLE_TOP, Scene
 from bicoord_drake.planning.errors import PlanningError
-from bicoord_drake.planning.grasps import Grasp, arm_base, gripper_frame, naturalness
+from bicoord_drake.planning.grasps import (
+    Grasp,
+    arm_base,
+    gripper_frame,
+    naturalness,
+    slid_grasps,
+)
 from bicoord_drake.planning.skills import (
     ArmPlan,
     SkillContext,
@@ -71,6 +77,10 @@ APPROACH_MARGIN = 0.01
 #: below the fingers once it hangs tip down), the fingertips TIP_CLEARANCE above the table.
 GRASP_BACK = 0.035
 TIP_CLEARANCE = 0.006
+#: Where no grasp at GRASP_BACK plans (a wide hand's housing, along the finger axis across
+#: the pen, over the holder 2.5 cm away), the grasps are tried again slid this far (m) along
+#: the pen either way, the pads a pad's height inside its ends.
+SLIDES = (0.01, 0.02, 0.03)
 #: The tip is let go INSERTS[0] (m) below the rim, 4.6 cm above the holder's floor, where the
 #: arm can take it there clear of the pens already standing, else INSERTS[1] below it (with
 #: GRASP_BACK that keeps the gripper above the top of a pen standing straight in the holder).
@@ -83,6 +93,18 @@ LOWER = 0.06
 #: Release jaw gap (m): the fingers part to about 5 cm, clear of the pens already standing
 #: (the robot's gripper turns it into an opening command).
 RELEASE_GAP = 0.0531
+#: The pen is squeezed with about HOLD_FORCE (N) (:func:`_close_opening`). Closed fully, the
+#: Franka Hand (its fingers closing to 0) squeezed a pen with 21-28 N, at the pads' lower
+#: edge (the pen's axis 1 mm above the fingertips, which stay TIP_CLEARANCE over the table),
+#: and the pen crept out past the fingertips while carried (under SAP) and fell or was let
+#: go tilted; at 17 N it stays. The ViperX's fingers stop 4 mm from the middle, so a closed
+#: ViperX grip squeezes at most 17 N: its command stays fully closed.
+HOLD_FORCE = 17.0
+#: The jaw opens over ceil(force limit / RELEASE_RATE) control steps (the gripper's squeeze,
+#: N, undone at about RELEASE_RATE N per step; :func:`_release_steps`): the ViperX's (30 N)
+#: over 4, as fast as its fingers open anyway (``ctx.gripper_steps``, so its inserts are
+#: unchanged), the Franka Hand's (70 N) over 9.
+RELEASE_RATE = 8.0
 #: Candidate tip points in the holder: its centre and two rings around it (radii, m); the
 #: one farthest from the pens already in it is used.
 DROP_RINGS = (0.012, 0.022)
@@ -315,15 +337,44 @@ def pen_grasps(ctx: SkillContext, side: str, name: str) -> list[Grasp]:
 
 def _pick(ctx: SkillContext, side: str, name: str) -> ArmPlan:
     """Pick `name` across (:func:`pen_grasps`), the jaw open only APPROACH_MARGIN beside the
-    pen on the way down (clear of the other pen on that side)."""
+    pen on the way down (clear of the other pen on that side); where none of those plans, the
+    grasps slid along the pen by SLIDES."""
     gripper = ctx.model.embodiment.arm.gripper
     shape: PenShape = ctx.model.object(name).shape
     opening = float(gripper.opening(shape.radius + APPROACH_MARGIN))
+    close = _close_opening(ctx, shape)
+    grasps = pen_grasps(ctx, side, name)
     ctx.model.set_gripper(side, opening)  # plan the approach with the fingers that narrow
     try:
-        return pick(ctx, side, name, grasps=pen_grasps(ctx, side, name), approach_opening=opening)
+        with ctx.transaction():
+            return pick(
+                ctx, side, name, grasps=grasps, approach_opening=opening, close_opening=close
+            )
+    except PlanningError as err:
+        pts = np.concatenate([p.trimesh().vertices for p in shape.primitives()])
+        X_WO = ctx.model.object_pose(name)
+        others = slid_grasps(grasps, X_WO, pts, SLIDES, gripper.pad_height)
+        if not others:
+            raise
+        ctx.model.set_gripper(side, opening)
+        try:
+            return pick(
+                ctx, side, name, grasps=others, approach_opening=opening, close_opening=close
+            )
+        except PlanningError as slid_err:
+            raise PlanningError(
+                "pick_failed", f"{err}; slid along it (SLIDES): {slid_err}"
+            ) from slid_err
     finally:
         ctx.model.set_gripper(side, ctx.model.embodiment.home_opening)
+
+
+def _close_opening(ctx: SkillContext, shape: PenShape) -> float:
+    """The closing command that squeezes the pen with about HOLD_FORCE N: the jaw gap
+    HOLD_FORCE / finger_kp per finger inside the pen's width (fully closed where that is
+    past the fingers' stroke)."""
+    gripper = ctx.model.embodiment.arm.gripper
+    return gripper.opening_for_gap(2 * shape.radius - 2 * HOLD_FORCE / gripper.finger_kp)
 
 
 def _insert(ctx: SkillContext, side: str) -> ArmPlan:
@@ -366,7 +417,14 @@ def _insert_to(ctx: SkillContext, side: str, held: str, insert: float) -> ArmPla
         retreat=0.05 + deeper,
         opening=ctx.model.embodiment.arm.gripper.opening_for_gap(RELEASE_GAP),
         yaws=[k * math.pi / 6 for k in range(12)],
+        release_steps=_release_steps(ctx),
     )
+
+
+def _release_steps(ctx: SkillContext) -> int:
+    """Control steps over which an insert lets go: the gripper's force limit (what a closed
+    grip on a pen squeezes with) undone at RELEASE_RATE N per step."""
+    return math.ceil(ctx.model.embodiment.arm.gripper.force_limit / RELEASE_RATE)
 
 
 def _drop_point(ctx: SkillContext, X_WH: RigidTransform, held: str, insert: float) -> np.ndarray:

@@ -13,7 +13,7 @@ from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import Scene, cube
 from bicoord_drake.planning.clearance import hands_gap, roomy_first, side_pitch
 from bicoord_drake.planning.errors import PlanningError
-from bicoord_drake.planning.grasps import arm_base, grasp_candidates, pitched
+from bicoord_drake.planning.grasps import arm_base, grasp_candidates, pitched, slid
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import SkillContext, hold, plan_both
 from bicoord_drake.planning.skills.pick_place import hand_params, roomy_grasps
@@ -81,6 +81,21 @@ def test_pitched_grasp_keeps_the_pads_and_tilts_down():
         np.linalg.norm(grasp.X_WG.translation() - grasp.X_WPre.translation())
     )
     assert np.allclose((X_WO @ tilted.X_OG).GetAsMatrix4(), tilted.X_WG.GetAsMatrix4())
+
+
+def test_slid_grasp_moves_along_the_object_between_the_same_faces():
+    X_WO = RigidTransform([0.0, 0.0, 0.8])
+    grasp = grasp_candidates(
+        cube("c", 0.0, 0.0, size=0.04), aloha_viperx().arm.gripper, X_WO=X_WO, kinds=["top"]
+    )[0]
+    assert slid(grasp, X_WO, 0.0) is grasp
+    moved = slid(grasp, X_WO, 0.01)
+    R = grasp.X_WG.rotation().matrix()
+    assert np.allclose(moved.X_WG.rotation().matrix(), R)
+    step = moved.X_WG.translation() - grasp.X_WG.translation()
+    assert np.allclose(step, 0.01 * R[:, 2])  # across the approach and the jaw axis
+    assert np.allclose(moved.X_WPre.translation() - grasp.X_WPre.translation(), step)
+    assert np.allclose((X_WO @ moved.X_OG).GetAsMatrix4(), moved.X_WG.GetAsMatrix4())
 
 
 def test_roomy_first_keeps_order_and_moves_crowded_ones_back():

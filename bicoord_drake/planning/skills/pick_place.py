@@ -49,12 +49,15 @@ def pick(
     kinds: Sequence[str] | None = None,
     grasps: Sequence[Grasp] | None = None,
     approach_opening: float | None = None,
+    close_opening: float = 0.0,
 ) -> ArmPlan:
     """Approach, grasp and lift object `name` with `side`; it is attached afterwards.
 
     `grasps` (best first) replaces the generated candidates, e.g. for one part of a
     compound object. With `approach_opening` the jaw narrows to that opening during the
-    approach (so a finger entering a container stays by its wall)."""
+    approach (so a finger entering a container stays by its wall). The gripper closes to
+    the command `close_opening` (default fully closed: the fingers squeeze the object as hard
+    as their stiffness and force limit let them)."""
     X_WO = ctx.model.object_pose(name)
     if grasps is None:
         base = arm_base(ctx.model.embodiment, side)
@@ -82,7 +85,7 @@ def pick(
                 approach.opening = approach.opening + ramp * (approach_opening - approach.opening)
                 ctx.opening[side] = approach_opening
             descend = move(ctx, side, q_grasp, label="descend", ignore=[name], straight=True)
-            close = grip(ctx, side, 0.0, label="close")
+            close = grip(ctx, side, close_opening, label="close")
             ctx.model.attach(name, side, ctx.q)
             up = move(ctx, side, q_lift, label="lift", ignore=[name], straight=True)
         except PlanningError as err:
@@ -239,13 +242,15 @@ def drop_into(
     lower: float = 0.04,
     retreat: float = 0.05,
     yaws: Sequence[float] = tuple(k * np.pi / 4 for k in range(8)),
+    release_steps: int | None = None,
 ) -> ArmPlan:
     """Carry the held object over the opening of `container`, lower it until its bottom is
     `fall` (m) above the rim (below it if negative: lowered into the container, from `lower`
     above that), let go and back off up: the object falls the last few cm (a bin
     is filled this way; nothing is set down inside it). The drop point is the container's
     centre shifted by `offset_xy` in the world; the object stays upright, turned by each of
-    `yaws` about the container's axes (most natural first: the wrist turns least)."""
+    `yaws` about the container's axes (most natural first: the wrist turns least). With
+    `release_steps` the gripper opens over that many control steps (as :func:`place`)."""
     held = ctx.model.held.get(side)
     if held is None:
         raise PlanningError("gripper_empty", f"{side} holds nothing to drop")
@@ -255,7 +260,15 @@ def drop_into(
     xy = X_WC.translation()[:2] + np.asarray(offset_xy, dtype=float)
     z = rim + fall + bottom_offset(shape) + _bottom_below_frame(shape)
     goal = RigidTransform(X_WC.rotation(), [xy[0], xy[1], z])
-    plan = place(ctx, side, goal, approach_height=lower, retreat=retreat, yaws=yaws)
+    plan = place(
+        ctx,
+        side,
+        goal,
+        approach_height=lower,
+        retreat=retreat,
+        yaws=yaws,
+        release_steps=release_steps,
+    )
     plan.label = f"drop {held.name} into {container}"
     return plan
 
