@@ -30,6 +30,7 @@ from pydrake.all import RigidTransform, RotationMatrix
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import PotShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
+from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.skills import (
     Motion,
     SkillContext,
@@ -85,6 +86,8 @@ RAISE = 0.20
 PARK_TURN = math.radians(-30)
 CARRY_TURN = math.radians(30)
 RELEASE_STEPS = 6
+BACK_OFF, SHORT_BACK_OFF = 0.06, 0.03
+FALLBACK_TURNS = tuple(math.radians(a) for a in (0, -30, 60, -60, 90, -90))
 SETTLE_STEPS = 8
 
 
@@ -241,13 +244,31 @@ def _set_down(
     """Carry the pot both hands hold to `raise_by` above `xy`, turning it `turn` (rad) about
     the vertical on the way, lower it there, let go together and back off."""
     X = ctx.model.held_pose("left", ctx.q)
-    R = RotationMatrix.MakeZRotation(turn) @ X.rotation()
-    over = RigidTransform(R, [xy[0], xy[1], TABLE_TOP + raise_by])
-    down = RigidTransform(R, [xy[0], xy[1], TABLE_TOP + 0.002])
-    carry = carry_together(ctx, over, label=label)
-    lower = carry_together(ctx, down, label=f"set {pot} down", ignore=[pot])
-    release = release_together(ctx, ramp_steps=RELEASE_STEPS)
-    return carry.then(lower).then(release)
+    errors = []
+    tries = [(turn, raise_by)] + [(t, h) for h in (raise_by, LIFT) for t in FALLBACK_TURNS]
+    for t, h in dict.fromkeys(tries):
+        R = RotationMatrix.MakeZRotation(t) @ X.rotation()
+        over = RigidTransform(R, [xy[0], xy[1], TABLE_TOP + h])
+        down = RigidTransform(R, [xy[0], xy[1], TABLE_TOP + 0.002])
+        try:
+            with ctx.transaction():
+                carry = carry_together(ctx, over, label=label)
+                lower = carry_together(ctx, down, label=f"set {pot} down", ignore=[pot])
+                release = _release(ctx)
+        except PlanningError as err:
+            errors.append(err)
+            continue
+        return carry.then(lower).then(release)
+    raise errors[0]
+
+
+def _release(ctx: SkillContext) -> Motion:
+    """Both hands let go of the pot they hold and back off BACK_OFF (m) along their approach,
+    or SHORT_BACK_OFF where an arm near the end of its reach cannot back off that far."""
+    try:
+        return release_together(ctx, ramp_steps=RELEASE_STEPS, back=BACK_OFF)
+    except PlanningError:
+        return release_together(ctx, ramp_steps=RELEASE_STEPS, back=SHORT_BACK_OFF)
 
 
 def plan_stages(ctx: SkillContext, spots: dict) -> Iterator[Motion]:
