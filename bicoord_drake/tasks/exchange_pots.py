@@ -16,7 +16,12 @@ keep clear of the other pot:
 
 The pots are 8.5-10 cm tall (the spec gives no size): on a shorter pot the handle sits so low
 that the gripper's side plates, which stand vertical for a grasp of a horizontal handle, touch
-the table.
+the table. A hand longer along its finger axis than the handle is high (the Franka Hand's
+0.2 m housing) closes across the handle's width instead, its approach pitched down
+(``bimanual.handle_pairs`` chooses by the hand's boxes). The turns above are tried first;
+where a carry, its lowering or the release has no plan, :func:`_set_down` tries the other
+turns (FALLBACK_TURNS) and then the low height, and the release backs off less
+(:func:`_release`).
 """
 
 from __future__ import annotations

@@ -147,7 +147,7 @@ def handle_pairs(
     # the handle at +x of the pot frame is the right hand's if that axis points to world +x
     right_sign = 1.0 if x_axis[0] >= 0 else -1.0
     per_side = {}
-    floor = X_WO.translation()[2] + ctx.env_clearance
+    floor = X_WO.translation()[2]
     for side, sign in (("left", -right_sign), ("right", right_sign)):
         base = arm_base(ctx.model.embodiment, side)
         grasps = pot_handle_grasps(X_WO, obj.shape, gripper, base=base, handles=(sign,))
