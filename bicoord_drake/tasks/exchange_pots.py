@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform, RotationMatrix
@@ -276,6 +277,18 @@ def _release(ctx: SkillContext) -> Motion:
         return release_together(ctx, ramp_steps=RELEASE_STEPS, back=SHORT_BACK_OFF)
 
 
+def _put_back(ctx: SkillContext, pot: str) -> Motion:
+    """Lower the pot both hands hold straight down onto the table, let go together and take
+    the arms home, one after the other."""
+    X = ctx.model.held_pose("left", ctx.q)
+    down = RigidTransform(X.rotation(), [*X.translation()[:2], TABLE_TOP + 0.002])
+    lower = carry_together(ctx, down, label=f"put {pot} back", ignore=[pot])
+    release = _release(ctx)
+    left_home = merge(ctx, retreat(ctx, "left"), None)
+    right_home = merge(ctx, None, retreat(ctx, "right"))
+    return lower.then(release).then(left_home).then(right_home)
+
+
 def plan_stages(ctx: SkillContext, spots: dict) -> Iterator[Motion]:
     """The expert's motions, one per sub-goal, planned from `ctx` (which the caller syncs to the
     measured state after each)."""
@@ -287,6 +300,15 @@ def plan_stages(ctx: SkillContext, spots: dict) -> Iterator[Motion]:
     yield _set_down(ctx, POT_2, spots[POT_1], raise_by=RAISE, label="carry pot 2", turn=CARRY_TURN)
     # ---- stages 5-6: take pot 1 again and move it low to pot 2's spot
     yield pick_together(ctx, POT_1, lift=LIFT)
-    yield _set_down(ctx, POT_1, spots[POT_2], raise_by=LIFT, label="move pot 1", turn=-PARK_TURN)
+    move = partial(_set_down, ctx, POT_1, spots[POT_2], raise_by=LIFT, label="move pot 1")
+    try:
+        last = move(turn=-PARK_TURN)
+    except PlanningError:
+        # the arms took the handles in joints that cannot carry the pot there (a 7-joint arm
+        # can close on them with joints at their limits): put it back, go home, take it again
+        yield _put_back(ctx, POT_1)
+        yield pick_together(ctx, POT_1, lift=LIFT)
+        last = move(turn=-PARK_TURN)
+    yield last
     away = merge(ctx, retreat(ctx, "left"), retreat(ctx, "right"))
     yield away.then(merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS)))
