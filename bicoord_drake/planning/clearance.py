@@ -97,6 +97,13 @@ def side_pitch(
     return None
 
 
+def hand_floor(boxes, X_WT: RigidTransform, z: float) -> float:
+    """How far (m) the hand (`boxes` in the TCP frame, as ``ArmSpec.hand_boxes``) at TCP pose
+    `X_WT` stays above the horizontal plane at height `z` (negative: it reaches below)."""
+    corners = np.vstack([_corners(lo, hi) for lo, hi in boxes])
+    return float(np.min(_transform(X_WT, corners)[:, 2]) - z)
+
+
 class HandRoom:
     """The room around the hand of `side` with the model at joint angles `q`: objects in
     `exclude` (the object being grasped, what is ignored) and what `side` holds are left out."""

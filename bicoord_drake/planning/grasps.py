@@ -590,6 +590,46 @@ def pot_handle_grasps(
     return sorted(out, key=lambda g: -g.score)
 
 
+#: How far (rad) :func:`pot_handle_grasps_across` tilts its approach down from horizontal.
+ACROSS_PITCH = 0.3
+
+
+def pot_handle_grasps_across(
+    X_WO: RigidTransform,
+    shape: PotShape,
+    gripper: GripperSpec,
+    *,
+    base: np.ndarray | None = None,
+    params: GraspParams = GraspParams(),
+    handles: Sequence[float] = (-1.0, 1.0),
+    pitch: float = ACROSS_PITCH,
+) -> list[Grasp]:
+    """Grasps of a pot's lug handles that close across the plate's width (the pads on its
+    two side faces, the jaw axis horizontal), best first: the approach points from outside
+    toward the pot's axis, tilted `pitch` (rad) down about the jaw axis (:func:`pitched`: the
+    wrist rises behind the handle, over what stands beside the pot), the pads as far out on
+    the plate as they fit. For a hand too long along its finger axis to stand vertical at the
+    handle's height (the plate-face grasps of :func:`pot_handle_grasps`). ``X_OG`` is
+    relative to the pot's frame."""
+    X_OW = X_WO.inverse()
+    out = []
+    for sign in handles:
+        if sign not in (-1.0, 1.0):
+            raise ValueError(f"a pot handle is -1 or +1, not {sign}")
+        part = shape.primitives()[shape.handle_indices()[0 if sign < 0 else 1]]
+        X_WH = X_WO @ RigidTransform(part.pose.matrix())
+        R = X_WH.rotation().matrix()
+        half = np.asarray(part.size, dtype=float) / 2
+        outward = sign * R[:, 0]
+        p = X_WH.translation() + outward * max(half[0] - gripper.pad_length / 2, 0.0)
+        for s in (1.0, -1.0):
+            g = _make("handle", X_WH, -outward, s * R[:, 1], p, 2 * half[1], gripper, params, base)
+            if g is not None:
+                g = pitched(g, X_WO, pitch)
+                out.append(Grasp(g.kind, g.X_WG, g.X_WPre, X_OW @ g.X_WG, g.width, g.score))
+    return sorted(out, key=lambda g: -g.score)
+
+
 def part_shape(part: Primitive) -> BoxShape | CylinderShape | SphereShape:
     """The shape of one part of a compound (a capsule is grasped like its cylinder)."""
     if part.kind == "box":

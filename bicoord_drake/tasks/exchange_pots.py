@@ -16,13 +16,19 @@ keep clear of the other pot:
 
 The pots are 8.5-10 cm tall (the spec gives no size): on a shorter pot the handle sits so low
 that the gripper's side plates, which stand vertical for a grasp of a horizontal handle, touch
-the table.
+the table. A hand longer along its finger axis than the handle is high (the Franka Hand's
+0.2 m housing) closes across the handle's width instead, its approach pitched down
+(``bimanual.handle_pairs`` chooses by the hand's boxes). The turns above are tried first;
+where a carry, its lowering or the release has no plan, :func:`_set_down` tries the other
+turns (FALLBACK_TURNS) and then the low height, and the release backs off less
+(:func:`_release`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from functools import partial
 
 import numpy as np
 from pydrake.all import RigidTransform, RotationMatrix
@@ -30,6 +36,7 @@ from pydrake.all import RigidTransform, RotationMatrix
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import PotShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
+from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.skills import (
     Motion,
     SkillContext,
@@ -85,6 +92,8 @@ RAISE = 0.20
 PARK_TURN = math.radians(-30)
 CARRY_TURN = math.radians(30)
 RELEASE_STEPS = 6
+BACK_OFF, SHORT_BACK_OFF = 0.06, 0.03
+FALLBACK_TURNS = tuple(math.radians(a) for a in (0, -30, 60, -60, 90, -90))
 SETTLE_STEPS = 8
 
 
@@ -241,13 +250,43 @@ def _set_down(
     """Carry the pot both hands hold to `raise_by` above `xy`, turning it `turn` (rad) about
     the vertical on the way, lower it there, let go together and back off."""
     X = ctx.model.held_pose("left", ctx.q)
-    R = RotationMatrix.MakeZRotation(turn) @ X.rotation()
-    over = RigidTransform(R, [xy[0], xy[1], TABLE_TOP + raise_by])
-    down = RigidTransform(R, [xy[0], xy[1], TABLE_TOP + 0.002])
-    carry = carry_together(ctx, over, label=label)
-    lower = carry_together(ctx, down, label=f"set {pot} down", ignore=[pot])
-    release = release_together(ctx, ramp_steps=RELEASE_STEPS)
-    return carry.then(lower).then(release)
+    errors = []
+    tries = [(turn, raise_by)] + [(t, h) for h in (raise_by, LIFT) for t in FALLBACK_TURNS]
+    for t, h in dict.fromkeys(tries):
+        R = RotationMatrix.MakeZRotation(t) @ X.rotation()
+        over = RigidTransform(R, [xy[0], xy[1], TABLE_TOP + h])
+        down = RigidTransform(R, [xy[0], xy[1], TABLE_TOP + 0.002])
+        try:
+            with ctx.transaction():
+                carry = carry_together(ctx, over, label=label)
+                lower = carry_together(ctx, down, label=f"set {pot} down", ignore=[pot])
+                release = _release(ctx)
+        except PlanningError as err:
+            errors.append(err)
+            continue
+        return carry.then(lower).then(release)
+    raise errors[0]
+
+
+def _release(ctx: SkillContext) -> Motion:
+    """Both hands let go of the pot they hold and back off BACK_OFF (m) along their approach,
+    or SHORT_BACK_OFF where an arm near the end of its reach cannot back off that far."""
+    try:
+        return release_together(ctx, ramp_steps=RELEASE_STEPS, back=BACK_OFF)
+    except PlanningError:
+        return release_together(ctx, ramp_steps=RELEASE_STEPS, back=SHORT_BACK_OFF)
+
+
+def _put_back(ctx: SkillContext, pot: str) -> Motion:
+    """Lower the pot both hands hold straight down onto the table, let go together and take
+    the arms home, one after the other."""
+    X = ctx.model.held_pose("left", ctx.q)
+    down = RigidTransform(X.rotation(), [*X.translation()[:2], TABLE_TOP + 0.002])
+    lower = carry_together(ctx, down, label=f"put {pot} back", ignore=[pot])
+    release = _release(ctx)
+    left_home = merge(ctx, retreat(ctx, "left"), None)
+    right_home = merge(ctx, None, retreat(ctx, "right"))
+    return lower.then(release).then(left_home).then(right_home)
 
 
 def plan_stages(ctx: SkillContext, spots: dict) -> Iterator[Motion]:
@@ -261,6 +300,15 @@ def plan_stages(ctx: SkillContext, spots: dict) -> Iterator[Motion]:
     yield _set_down(ctx, POT_2, spots[POT_1], raise_by=RAISE, label="carry pot 2", turn=CARRY_TURN)
     # ---- stages 5-6: take pot 1 again and move it low to pot 2's spot
     yield pick_together(ctx, POT_1, lift=LIFT)
-    yield _set_down(ctx, POT_1, spots[POT_2], raise_by=LIFT, label="move pot 1", turn=-PARK_TURN)
+    move = partial(_set_down, ctx, POT_1, spots[POT_2], raise_by=LIFT, label="move pot 1")
+    try:
+        last = move(turn=-PARK_TURN)
+    except PlanningError:
+        # the arms took the handles in joints that cannot carry the pot there (a 7-joint arm
+        # can close on them with joints at their limits): put it back, go home, take it again
+        yield _put_back(ctx, POT_1)
+        yield pick_together(ctx, POT_1, lift=LIFT)
+        last = move(turn=-PARK_TURN)
+    yield last
     away = merge(ctx, retreat(ctx, "left"), retreat(ctx, "right"))
     yield away.then(merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS)))

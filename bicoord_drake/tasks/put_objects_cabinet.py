@@ -16,7 +16,9 @@ from bicoord_drake.models.cabinet import HANDLE_PART, CabinetDims, cabinet
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
 from bicoord_drake.models.scene import TABLE_TOP, Scene
+from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.skills import (
+    ArmPlan,
     SkillContext,
     carry_above,
     hold,
@@ -74,6 +76,9 @@ BACK_OFF = 0.10
 #: Box 1 is carried this high (m) over its slot while the drawer opens under it (above the
 #: rim of the drawer's front wall as it passes).
 CARRY_HEIGHT = 0.09
+#: The least clearance (m) of the left hand to the cabinet at its grasp of box 2 where the
+#: usual one cannot be kept (:func:`pick_beside`).
+TIGHT_CLEARANCE = 0.001
 #: Control steps both arms hold still at the end (the boxes must be seen at rest 0.3 s).
 SETTLE_STEPS = 10
 
@@ -93,7 +98,10 @@ class PutObjectsCabinet(Task):
     the drawer out 16 cm (the drawer slides on a damped prismatic joint with end stops) while
     the left lifts the box over it; the right holds the drawer still while the left places the
     box in it, picks the other box and places it beside the first; then the right pushes the
-    drawer shut and lets go while the left retreats.
+    drawer shut and lets go while the left retreats. Where the left hand finds no pose over
+    box 1's slot beside the right hand on the handle (a hand long along its finger axis), the
+    right lets go of the opened drawer and backs away before the left comes over it, and takes
+    the handle again to close it (:func:`make_room`).
 
     Layout: the cabinet (26 x 22 x 9.6 cm outside; the drawer 23 x 20 x 7.5 cm, its handle
     4.5 cm in front) stands at x in [-0.05, 0.05], y about 0.15 as in the reference. The boxes
@@ -206,25 +214,58 @@ class PutObjectsCabinet(Task):
         yield from run(merge(ctx, left, right, ignore=[DRAWER]))
         # ---- stage 2: right pulls the drawer out; left carries box 1 high over its slot
         right = slide_drawer(ctx, "right", DRAWER, OPEN)
-        left = carry_above(ctx, "left", slot_pose(ctx, 0), height=CARRY_HEIGHT)
-        yield from run(merge(ctx, left, right, ignore=[DRAWER]))
+        try:
+            left = carry_above(ctx, "left", slot_pose(ctx, 0), height=CARRY_HEIGHT)
+        except PlanningError:
+            left = None  # no room beside the hand on the handle: see make_room
+        holding = left is not None
+        if holding:
+            yield from run(merge(ctx, left, right, ignore=[DRAWER]))
+        else:
+            yield from make_room(ctx, view, right)
         # ---- stage 3: right holds the drawer; left places box 1, picks and places box 2
         left = put_in(ctx, 0)
         yield from run(merge(ctx, left, None, ignore=[DRAWER]))
         ctx.model.set_gripper("left", ctx.model.embodiment.home_opening)  # opens to pick
-        left = pick(ctx, "left", box_2)
+        left = pick_beside(ctx, box_2)
         narrow_jaw(ctx)
         left = left.then(put_in(ctx, 1))
         yield from run(merge(ctx, left, None, ignore=[DRAWER]))
         # ---- stage 4: left retreats while right pushes the drawer shut, lets go, retreats
         left = retreat(ctx, "left")
         opened = ctx.model.slide_position(DRAWER)
+        regrasp = None if holding else grasp_handle(ctx, "right", DRAWER, HANDLE_PART)
         shut = slide_drawer(ctx, "right", DRAWER, -opened, carried=BOXES)
+        if regrasp is not None:  # the right let go in make_room: it takes the handle again
+            shut = regrasp.then(shut)
         right = shut.then(let_go_handle(ctx, "right", DRAWER, HANDLE_PART))
         right = right.then(retreat(ctx, "right"))
         yield from run(merge(ctx, left, right, ignore=[DRAWER, *BOXES]))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
+
+
+def pick_beside(ctx: SkillContext, box: str):
+    """The left hand picks `box` (lying beside the cabinet); where its hand finds no grasp
+    that keeps the environment clearance (a hand long along its finger axis, which lies
+    across the box, reaches toward the cabinet's side), the grasp pose itself may come as
+    close as TIGHT_CLEARANCE (the approach and the lift keep the usual one)."""
+    try:
+        return pick(ctx, "left", box)
+    except PlanningError:
+        return pick(ctx, "left", box, grasp_clearance=TIGHT_CLEARANCE)
+
+
+def make_room(ctx: SkillContext, view: WorldView, pull: ArmPlan) -> Iterator[np.ndarray]:
+    """Stage 2 where the left hand finds no pose over box 1's slot beside the right hand on
+    the handle (a hand long along its finger axis reaches over the other): the right pulls
+    the drawer out (`pull`) while the left holds box 1 where its pick lifted it, then lets go
+    of the opened drawer (it stays on its damped slide) and backs away home while the left
+    carries box 1 over its slot. The right takes the handle again to close the drawer."""
+    yield from follow(ctx, view, merge(ctx, None, pull, ignore=[DRAWER]))
+    right = let_go_handle(ctx, "right", DRAWER, HANDLE_PART).then(retreat(ctx, "right"))
+    left = carry_above(ctx, "left", slot_pose(ctx, 0), height=CARRY_HEIGHT)
+    yield from follow(ctx, view, merge(ctx, left, right, ignore=[DRAWER]))
 
 
 # -------------------------------------------------------------------- objects and helpers

@@ -6,12 +6,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from pydrake.math import RigidTransform
+from pydrake.math import RigidTransform, RotationMatrix
 
 from bicoord_drake.models.embodiment import aloha_viperx
 from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import Scene, cube
-from bicoord_drake.planning.clearance import hands_gap, roomy_first, side_pitch
+from bicoord_drake.planning.clearance import hand_floor, hands_gap, roomy_first, side_pitch
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import arm_base, grasp_candidates, pitched, slid
 from bicoord_drake.planning.model import PlanningModel
@@ -63,6 +63,17 @@ def test_side_pitch_lifts_a_tall_hand_off_the_support():
     a = side_pitch(franka.hand_boxes(), 0.029, 0.004)
     assert a == pytest.approx(np.radians(12.5), abs=0.01)
     assert side_pitch(franka.hand_boxes(), 0.029, 0.004, limit=0.1) is None
+
+
+def test_hand_floor_reads_the_finger_axis():
+    """A hand held with its finger axis vertical reaches half its finger-axis extent below
+    the TCP; turned horizontal, only half its thickness."""
+    boxes = get_embodiment("franka_pair").arm.hand_boxes()
+    lo = min(float(b[0][1]) for b in boxes)
+    vertical = RigidTransform(RotationMatrix.MakeXRotation(np.pi / 2), [0.0, 0.0, 0.1])
+    flat = RigidTransform([0.0, 0.0, 0.1])
+    assert hand_floor(boxes, vertical, 0.0) == pytest.approx(0.1 + lo)
+    assert hand_floor(boxes, flat, 0.0) > hand_floor(boxes, vertical, 0.0)
 
 
 def test_pitched_grasp_keeps_the_pads_and_tilts_down():

@@ -426,6 +426,27 @@ def test_pot_handles_are_grasped_from_outside_horizontally():
         pot_handle_grasps(X_WO, pot, gripper, handles=(0.0,))
 
 
+def test_pot_handles_grasped_across_their_width_keep_the_pads_on_its_sides():
+    from bicoord_drake.models.objects import PotShape
+    from bicoord_drake.planning.grasps import ACROSS_PITCH, pot_handle_grasps_across
+
+    gripper = get_embodiment("franka_pair").arm.gripper
+    pot = PotShape(radius=0.06, height=0.09)
+    X_WO = RigidTransform(RollPitchYaw(0, 0, 0.3), [0.1, -0.1, TABLE_TOP])
+    for sign in (-1.0, 1.0):
+        grasps = pot_handle_grasps_across(X_WO, pot, gripper, handles=(sign,))
+        assert len(grasps) == 2
+        outward = sign * X_WO.rotation().col(0)
+        for g in grasps:
+            # the jaw across the plate's width, horizontal; the approach toward the axis,
+            # tilted ACROSS_PITCH down
+            assert abs(g.finger_axis @ X_WO.rotation().col(1)) > 0.999
+            assert g.width == pytest.approx(pot.handle_width)
+            assert g.approach @ outward == pytest.approx(-np.cos(ACROSS_PITCH))
+            assert g.approach[2] == pytest.approx(-np.sin(ACROSS_PITCH))
+            assert (X_WO @ g.X_OG).IsNearlyEqualTo(g.X_WG, 1e-9)
+
+
 def test_turned_onto_takes_u_onto_v_by_the_smallest_turn():
     R = RotationMatrix(RollPitchYaw(0.3, -0.2, 1.1))
     u = np.array([0.0, 0.0, 1.0])

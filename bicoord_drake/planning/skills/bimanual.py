@@ -31,6 +31,7 @@ from pydrake.all import PiecewiseQuaternionSlerp, RigidTransform, RotationMatrix
 
 from bicoord_drake.models.embodiment import SIDES
 from bicoord_drake.models.objects import BoxShape, CylinderShape, PotShape
+from bicoord_drake.planning.clearance import hand_floor
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import (
     Grasp,
@@ -38,6 +39,7 @@ from bicoord_drake.planning.grasps import (
     grasp_candidates,
     naturalness,
     pot_handle_grasps,
+    pot_handle_grasps_across,
 )
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.skills.arm import grip, tcp_deviation
@@ -145,9 +147,16 @@ def handle_pairs(
     # the handle at +x of the pot frame is the right hand's if that axis points to world +x
     right_sign = 1.0 if x_axis[0] >= 0 else -1.0
     per_side = {}
+    floor = X_WO.translation()[2]
     for side, sign in (("left", -right_sign), ("right", right_sign)):
         base = arm_base(ctx.model.embodiment, side)
-        per_side[side] = pot_handle_grasps(X_WO, obj.shape, gripper, base=base, handles=(sign,))
+        grasps = pot_handle_grasps(X_WO, obj.shape, gripper, base=base, handles=(sign,))
+        if not any(hand_floor(ctx.model.hand_boxes, g.X_WG, floor) >= 0 for g in grasps):
+            # a hand this long along its finger axis, standing vertical at the handle, would
+            # reach below the pot's base: it closes across the handle's width instead
+            across = pot_handle_grasps_across(X_WO, obj.shape, gripper, base=base, handles=(sign,))
+            grasps = across or grasps
+        per_side[side] = grasps
     pairs = [
         GraspPair(a, b, a.score + b.score) for a in per_side["left"] for b in per_side["right"]
     ]

@@ -50,6 +50,7 @@ def pick(
     grasps: Sequence[Grasp] | None = None,
     approach_opening: float | None = None,
     close_opening: float = 0.0,
+    grasp_clearance: float | None = None,
 ) -> ArmPlan:
     """Approach, grasp and lift object `name` with `side`; it is attached afterwards.
 
@@ -57,7 +58,9 @@ def pick(
     compound object. With `approach_opening` the jaw narrows to that opening during the
     approach (so a finger entering a container stays by its wall). The gripper closes to
     the command `close_opening` (default fully closed: the fingers squeeze the object as hard
-    as their stiffness and force limit let them)."""
+    as their stiffness and force limit let them). `grasp_clearance` (m) replaces the
+    environment clearance the hand keeps at the grasp pose itself (default
+    ``ctx.env_clearance``), e.g. a smaller one for an object lying close to a wall."""
     X_WO = ctx.model.object_pose(name)
     if grasps is None:
         base = arm_base(ctx.model.embodiment, side)
@@ -73,7 +76,7 @@ def pick(
     reasons = []
     for grasp in grasps[:MAX_GRASP_TRIES]:
         try:
-            q_pre, q_grasp, q_lift = _grasp_keyframes(ctx, side, name, grasp, lift)
+            q_pre, q_grasp, q_lift = _grasp_keyframes(ctx, side, name, grasp, lift, grasp_clearance)
         except PlanningError as err:
             reasons.append(err.reason)
             continue
@@ -144,9 +147,23 @@ def roomy_places(
     return roomy_first(list(cands), margins)
 
 
-def _grasp_keyframes(ctx: SkillContext, side: str, name: str, grasp: Grasp, lift: float):
+def _grasp_keyframes(
+    ctx: SkillContext,
+    side: str,
+    name: str,
+    grasp: Grasp,
+    lift: float,
+    grasp_clearance: float | None = None,
+):
     q_pre = solve_tcp(ctx, side, TcpTarget(grasp.X_WPre))
-    q_grasp = solve_tcp(ctx, side, TcpTarget(grasp.X_WG), seed_arm=q_pre, ignore=[name])
+    q_grasp = solve_tcp(
+        ctx,
+        side,
+        TcpTarget(grasp.X_WG),
+        seed_arm=q_pre,
+        ignore=[name],
+        env_clearance=grasp_clearance,
+    )
     X_lift = RigidTransform(grasp.X_WG.rotation(), grasp.X_WG.translation() + [0, 0, lift])
     q_lift = solve_tcp(ctx, side, TcpTarget(X_lift), seed_arm=q_grasp, ignore=[name])
     _check_straight(ctx, side, (q_pre, q_grasp, q_lift), ("descend", "lift"))
