@@ -24,6 +24,10 @@ SLOW_TASKS = (
     "exchange_mics",
     "place_plate_and_cup",
     "build_bridge",
+    "divide_block_tower",
+    "put_objects_cabinet",
+    "exchange_pots",
+    "collect_pens",
 )
 
 
