@@ -578,10 +578,7 @@ def pot_handle_grasps(
     X_OW = X_WO.inverse()
     out = []
     for sign in handles:
-        if sign not in (-1.0, 1.0):
-            raise ValueError(f"a pot handle is -1 or +1, not {sign}")
-        part = shape.primitives()[shape.handle_indices()[0 if sign < 0 else 1]]
-        X_WH = X_WO @ RigidTransform(part.pose.matrix())
+        part, X_WH = _pot_handle(X_WO, shape, sign)
         outward = sign * X_WO.rotation().col(0)
         for g in handle_grasps(X_WH, part_shape(part), gripper, base=base, params=params):
             if g.approach @ outward > -np.cos(np.pi / 4) or abs(g.approach[2]) > 0.5:
@@ -614,10 +611,7 @@ def pot_handle_grasps_across(
     X_OW = X_WO.inverse()
     out = []
     for sign in handles:
-        if sign not in (-1.0, 1.0):
-            raise ValueError(f"a pot handle is -1 or +1, not {sign}")
-        part = shape.primitives()[shape.handle_indices()[0 if sign < 0 else 1]]
-        X_WH = X_WO @ RigidTransform(part.pose.matrix())
+        part, X_WH = _pot_handle(X_WO, shape, sign)
         R = X_WH.rotation().matrix()
         half = np.asarray(part.size, dtype=float) / 2
         outward = sign * R[:, 0]
@@ -628,6 +622,16 @@ def pot_handle_grasps_across(
                 g = pitched(g, X_WO, pitch)
                 out.append(Grasp(g.kind, g.X_WG, g.X_WPre, X_OW @ g.X_WG, g.width, g.score))
     return sorted(out, key=lambda g: -g.score)
+
+
+def _pot_handle(
+    X_WO: RigidTransform, shape: PotShape, sign: float
+) -> tuple[Primitive, RigidTransform]:
+    """The lug handle on the pot's -x (`sign` -1) or +x (+1) side and its pose in the world."""
+    if sign not in (-1.0, 1.0):
+        raise ValueError(f"a pot handle is -1 or +1, not {sign}")
+    part = shape.primitives()[shape.handle_indices()[0 if sign < 0 else 1]]
+    return part, X_WO @ RigidTransform(part.pose.matrix())
 
 
 def part_shape(part: Primitive) -> BoxShape | CylinderShape | SphereShape:
