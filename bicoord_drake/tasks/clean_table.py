@@ -24,12 +24,10 @@ from bicoord_drake.models.objects import (
 from bicoord_drake.models.scene import TABLE_TOP, Scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.grasps import (
-    Grasp,
     GraspParams,
     arm_base,
     bounding_box_grasps,
     box_grasps,
-    slid_grasps,
 )
 from bicoord_drake.planning.skills import (
     ArmPlan,
@@ -40,8 +38,9 @@ from bicoord_drake.planning.skills import (
     leave_as_arrives,
     merge,
     move_tcp,
-    pick,
+    pick_sliding,
     retreat,
+    squeeze_release_steps,
     take_turn,
 )
 from bicoord_drake.stages import Stage
@@ -116,15 +115,12 @@ DROP_GAP = 0.03
 DROP_LOWER = 0.04
 DROP_RETREAT = 0.05
 FALL = 0.025
-#: A dropped object is let go over ceil(force limit / RELEASE_RATE) control steps (the
-#: gripper's squeeze, N, undone at about RELEASE_RATE N per step; :func:`_release_steps`):
-#: the ViperX's (30 N) over 4, as fast as its fingers open anyway (``ctx.gripper_steps``,
-#: so its drops are unchanged), the Franka Hand's (70 N) over 9. Opened at once (3 steps),
-#: the jaw leaving last dragged the Franka Hand's objects 1.5-2 cm sideways as they fell
-#: (under SAP), off their spots and onto each other; let go over 6 steps, a loaf could still
-#: tip and catch on a Franka fingertip; over 6 or more, the ViperX's long fingers kept hold
-#: of a loaf (seed 2).
-RELEASE_RATE = 8.0
+#: A dropped object is let go over ``squeeze_release_steps`` (the gripper's force limit at
+#: 8 N per step: the ViperX's over 4, as fast as its fingers open anyway, so its drops are
+#: unchanged, the Franka Hand's over 9). Opened at once (3 steps), the jaw leaving last dragged
+#: the Franka Hand's objects 1.5-2 cm sideways as they fell (under SAP), off their spots and
+#: onto each other; let go over 6 steps, a loaf could still tip and catch on a Franka
+#: fingertip; over 6 or more, the ViperX's long fingers kept hold of a loaf (seed 2).
 #: While one arm leaves the bin and the other brings the next object, the bringing arm's TCP
 #: comes within CLEAR_RADIUS (xy, m) of the bin's centre only CLEAR_STEPS after the leaving
 #: arm's TCP has gone out of it (merge's check leaves out the object let go within the
@@ -341,7 +337,7 @@ def _pick(ctx: SkillContext, side: str, name: str) -> ArmPlan:
     its bounding box, the fingertips TIP_CLEARANCE above its bottom, so that the pads reach
     its widest part, the base (short pads held higher straddled the mouse's ledge, dome above
     base, and it stuck to a fingertip when let go). Where no grasp plans, the grasps slid
-    along the object (:func:`_slid_grasps`)."""
+    along the object (``pick_sliding``)."""
     obj = ctx.model.object(name)
     gripper = ctx.model.embodiment.arm.gripper
     lo = min(p.trimesh().bounds[0][2] for p in obj.shape.primitives())
@@ -356,29 +352,7 @@ def _pick(ctx: SkillContext, side: str, name: str) -> ArmPlan:
         grasps = bounding_box_grasps(X_WO, obj.shape, gripper, base=base, params=params)
     else:
         grasps = box_grasps(X_WO, obj.shape, gripper, base=base, kinds=("top",), params=params)
-    try:
-        with ctx.transaction():
-            return pick(ctx, side, name, grasps=grasps)
-    except PlanningError as err:
-        others = _slid_grasps(ctx, name, grasps)
-        if not others:
-            raise
-        try:
-            return pick(ctx, side, name, grasps=others)
-        except PlanningError as slid_err:
-            raise PlanningError(
-                "pick_failed", f"{err}; slid along it (SLIDES): {slid_err}"
-            ) from slid_err
-
-
-def _slid_grasps(ctx: SkillContext, name: str, grasps: list[Grasp]) -> list[Grasp]:
-    """`grasps` slid by each of SLIDES (m) either way along the object (:func:`slid_grasps`),
-    the smaller slides first, where the pads (``GripperSpec.pad_height`` along the slide)
-    stay that far inside the ends of the object."""
-    obj = ctx.model.object(name)
-    pts = np.concatenate([p.trimesh().vertices for p in obj.shape.primitives()])
-    pad = ctx.model.embodiment.arm.gripper.pad_height
-    return slid_grasps(grasps, ctx.model.object_pose(name), pts, SLIDES, pad)
+    return pick_sliding(ctx, side, name, grasps, SLIDES)
 
 
 def _drop(ctx: SkillContext, side: str, k: int) -> ArmPlan:
@@ -405,17 +379,11 @@ def _drop(ctx: SkillContext, side: str, k: int) -> ArmPlan:
                         lower=DROP_LOWER + FALL - fall,
                         retreat=DROP_RETREAT + FALL - fall,
                         yaws=yaws,
-                        release_steps=_release_steps(ctx),
+                        release_steps=squeeze_release_steps(ctx),
                     )
             except PlanningError as err:
                 reasons.append(err.reason)
     raise PlanningError("place_failed", f"{side} cannot drop into the bin ({', '.join(reasons)})")
-
-
-def _release_steps(ctx: SkillContext) -> int:
-    """Control steps over which a drop lets go: the gripper's force limit (what a closed
-    grip on a small object squeezes with) undone at RELEASE_RATE N per step."""
-    return math.ceil(ctx.model.embodiment.arm.gripper.force_limit / RELEASE_RATE)
 
 
 def _drop_spots(

@@ -24,7 +24,6 @@ from bicoord_drake.planning.grasps import (
     arm_base,
     gripper_frame,
     naturalness,
-    slid_grasps,
 )
 from bicoord_drake.planning.skills import (
     ArmPlan,
@@ -32,8 +31,9 @@ from bicoord_drake.planning.skills import (
     hold,
     merge,
     move_tcp,
-    pick,
+    pick_sliding,
     place,
+    squeeze_release_steps,
 )
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
@@ -100,11 +100,8 @@ RELEASE_GAP = 0.0531
 #: go tilted; at 17 N it stays. The ViperX's fingers stop 4 mm from the middle, so a closed
 #: ViperX grip squeezes at most 17 N: its command stays fully closed.
 HOLD_FORCE = 17.0
-#: The jaw opens over ceil(force limit / RELEASE_RATE) control steps (the gripper's squeeze,
-#: N, undone at about RELEASE_RATE N per step; :func:`_release_steps`): the ViperX's (30 N)
-#: over 4, as fast as its fingers open anyway (``ctx.gripper_steps``, so its inserts are
-#: unchanged), the Franka Hand's (70 N) over 9.
-RELEASE_RATE = 8.0
+#: An insert lets go over ``squeeze_release_steps`` (the ViperX's over 4 steps, as fast as
+#: its fingers open anyway, so its inserts are unchanged; the Franka Hand's over 9).
 #: Candidate tip points in the holder: its centre and two rings around it (radii, m); the
 #: one farthest from the pens already in it is used.
 DROP_RINGS = (0.012, 0.022)
@@ -344,27 +341,18 @@ def _pick(ctx: SkillContext, side: str, name: str) -> ArmPlan:
     opening = float(gripper.opening(shape.radius + APPROACH_MARGIN))
     close = _close_opening(ctx, shape)
     grasps = pen_grasps(ctx, side, name)
-    ctx.model.set_gripper(side, opening)  # plan the approach with the fingers that narrow
     try:
-        with ctx.transaction():
-            return pick(
-                ctx, side, name, grasps=grasps, approach_opening=opening, close_opening=close
-            )
-    except PlanningError as err:
-        pts = np.concatenate([p.trimesh().vertices for p in shape.primitives()])
-        X_WO = ctx.model.object_pose(name)
-        others = slid_grasps(grasps, X_WO, pts, SLIDES, gripper.pad_height)
-        if not others:
-            raise
-        ctx.model.set_gripper(side, opening)
-        try:
-            return pick(
-                ctx, side, name, grasps=others, approach_opening=opening, close_opening=close
-            )
-        except PlanningError as slid_err:
-            raise PlanningError(
-                "pick_failed", f"{err}; slid along it (SLIDES): {slid_err}"
-            ) from slid_err
+        return pick_sliding(
+            ctx,
+            side,
+            name,
+            grasps,
+            SLIDES,
+            # plan the approach with the fingers that narrow
+            prepare=lambda: ctx.model.set_gripper(side, opening),
+            approach_opening=opening,
+            close_opening=close,
+        )
     finally:
         ctx.model.set_gripper(side, ctx.model.embodiment.home_opening)
 
@@ -417,14 +405,8 @@ def _insert_to(ctx: SkillContext, side: str, held: str, insert: float) -> ArmPla
         retreat=0.05 + deeper,
         opening=ctx.model.embodiment.arm.gripper.opening_for_gap(RELEASE_GAP),
         yaws=[k * math.pi / 6 for k in range(12)],
-        release_steps=_release_steps(ctx),
+        release_steps=squeeze_release_steps(ctx),
     )
-
-
-def _release_steps(ctx: SkillContext) -> int:
-    """Control steps over which an insert lets go: the gripper's force limit (what a closed
-    grip on a pen squeezes with) undone at RELEASE_RATE N per step."""
-    return math.ceil(ctx.model.embodiment.arm.gripper.force_limit / RELEASE_RATE)
 
 
 def _drop_point(ctx: SkillContext, X_WH: RigidTransform, held: str, insert: float) -> np.ndarray:

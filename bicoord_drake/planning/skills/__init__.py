@@ -100,8 +100,10 @@ from bicoord_drake.planning.skills.pick_place import (
     carry_above,
     drop_into,
     pick,
+    pick_sliding,
     place,
     release,
+    squeeze_release_steps,
     stabilize,
 )
 from bicoord_drake.planning.skills.pour import pour
@@ -147,8 +149,10 @@ __all__ = [
     "move",
     "move_tcp",
     "pick",
+    "pick_sliding",
     "pick_together",
     "place",
+    "squeeze_release_steps",
     "pour",
     "pull",
     "push",

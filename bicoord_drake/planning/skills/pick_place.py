@@ -11,7 +11,8 @@ the gripper where it is and backs off.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+import math
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -27,6 +28,7 @@ from bicoord_drake.planning.grasps import (
     bottom_offset,
     grasp_candidates,
     place_candidates,
+    slid_grasps,
     top_offset,
 )
 from bicoord_drake.planning.ik import TcpTarget
@@ -117,6 +119,52 @@ def hand_params(ctx: SkillContext, params: GraspParams | None = None) -> GraspPa
     params = GraspParams() if params is None else params
     need = round(ctx.model.embodiment.arm.hand_half_height() + ctx.env_clearance, 4)
     return replace(params, side_clearance=max(params.side_clearance, need))
+
+
+#: A slow release undoes the gripper's squeeze at about this many N per control step
+#: (:func:`squeeze_release_steps`).
+RELEASE_RATE = 8.0
+
+
+def squeeze_release_steps(ctx: SkillContext) -> int:
+    """Control steps over which a hand lets go of what it squeezed: its force limit undone at
+    RELEASE_RATE N per step (the ViperX's 30 N over 4 steps, as fast as its fingers open
+    anyway; the Franka Hand's 70 N over 9)."""
+    return math.ceil(ctx.model.embodiment.arm.gripper.force_limit / RELEASE_RATE)
+
+
+def pick_sliding(
+    ctx: SkillContext,
+    side: str,
+    name: str,
+    grasps: Sequence[Grasp],
+    slides: Sequence[float],
+    *,
+    prepare: Callable[[], None] = lambda: None,
+    **pick_args,
+) -> ArmPlan:
+    """:func:`pick` with `grasps`; where none of them plans (a wide hand's housing over a wall
+    or a neighbour), the same grasps slid along the object by each of `slides` (m, either way,
+    :func:`~bicoord_drake.planning.grasps.slid_grasps`) where the pads stay a pad's height
+    inside its ends. `prepare` runs before each attempt (e.g. setting the model's fingers)."""
+    prepare()
+    try:
+        with ctx.transaction():
+            return pick(ctx, side, name, grasps=grasps, **pick_args)
+    except PlanningError as err:
+        shape = ctx.model.object(name).shape
+        pts = np.concatenate([p.trimesh().vertices for p in shape.primitives()])
+        pad = ctx.model.embodiment.arm.gripper.pad_height
+        others = slid_grasps(grasps, ctx.model.object_pose(name), pts, slides, pad)
+        if not others:
+            raise
+        prepare()
+        try:
+            return pick(ctx, side, name, grasps=others, **pick_args)
+        except PlanningError as slid_err:
+            raise PlanningError(
+                "pick_failed", f"{err}; slid along it (SLIDES): {slid_err}"
+            ) from slid_err
 
 
 def roomy_grasps(
