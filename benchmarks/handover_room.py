@@ -25,7 +25,7 @@ import argparse
 import itertools
 
 import numpy as np
-from pydrake.all import RigidTransform, RotationMatrix
+from pydrake.all import AngleAxis, RigidTransform, RotationMatrix
 
 import bicoord_drake.tasks.handover_block_with_bowls as task
 from bicoord_drake.models.objects import BowlShape
@@ -39,10 +39,25 @@ AZIMUTHS = np.radians(np.arange(-180, 180, 15))  # the right hand's grip around 
 RIM_DEPTHS = (0.003, 0.015)  # pad top below the rim, m
 FALL_ALONG = 0.03  # the cube's column runs this far along the pour direction, m
 PATH_MARGIN = 0.005  # the hand keeps this far from the column, m
+TILTS = np.radians([0, 20, 40, 60, 80])  # samples of the pour (POUR_ANGLE is 80 deg)
 
 
 def _moved(X: RigidTransform, points: np.ndarray) -> np.ndarray:
     return points @ X.rotation().matrix().T + X.translation()
+
+
+def _pour_turns(X_WP: RigidTransform) -> list[RigidTransform]:
+    """World motions of the pour at TILTS: turns about the horizontal axis through the lip,
+    across the spout's direction (as the expert's pour)."""
+    d = X_WP.rotation().col(0)
+    axis = np.cross([0.0, 0.0, 1.0], d)
+    axis /= np.linalg.norm(axis)
+    lip = X_WP @ task.LIP_POINT
+    turns = []
+    for angle in TILTS:
+        R = RotationMatrix(AngleAxis(angle, axis))
+        turns.append(RigidTransform(R, lip - R @ lip))
+    return turns
 
 
 def _fall_column(lip: np.ndarray, drop: float) -> np.ndarray:
@@ -94,8 +109,9 @@ def room(embodiment_name: str, keep_fall_clear: bool = True) -> dict:
         for yaw in task.SPOUT_YAWS:
             R = RotationMatrix.MakeZRotation(task.POUR_YAW + yaw)
             X_WP = RigidTransform(R, task.LIP_AT - R @ task.LIP_POINT)
-            pour_W = _moved(X_WP, pour_points)
-            left_tcps = [X_WP @ g.X_WG for g in left_grasps]
+            turns = _pour_turns(X_WP)
+            pour_W = [_moved(T @ X_WP, pour_points) for T in turns]
+            left_tcps = [[T @ X_WP @ g.X_WG for T in turns] for g in left_grasps]
             for drop in DROPS:
                 column = _fall_column(task.LIP_AT, drop)
                 for offset, azimuth, grasp in itertools.product(offsets, AZIMUTHS, rights[:1]):
@@ -109,13 +125,19 @@ def room(embodiment_name: str, keep_fall_clear: bool = True) -> dict:
                         and points_to_boxes(_moved(X_TW, column), boxes) < PATH_MARGIN
                     ):
                         continue
-                    d_pour = points_to_boxes(_moved(X_TW, pour_W), boxes)
+                    d_pour = min(points_to_boxes(_moved(X_TW, pts), boxes) for pts in pour_W)
                     if d_pour <= best["clearance"]:
                         continue
                     catch_W = _moved(X_WB, catch_points)
-                    for X_WL in left_tcps:
-                        d_hands = points_to_boxes(_moved(X_TW @ X_WL, hand_points), boxes)
-                        d_catch = points_to_boxes(_moved(X_WL.inverse(), catch_W), boxes)
+                    for X_WLs in left_tcps:
+                        d_hands = min(
+                            points_to_boxes(_moved(X_TW @ X_WL, hand_points), boxes)
+                            for X_WL in X_WLs
+                        )
+                        d_catch = min(
+                            points_to_boxes(_moved(X_WL.inverse(), catch_W), boxes)
+                            for X_WL in X_WLs
+                        )
                         clearance = min(d_pour, d_hands, d_catch)
                         if clearance > best["clearance"]:
                             best = {
