@@ -102,6 +102,15 @@ RELEASE_GAP = 0.0531
 HOLD_FORCE = 17.0
 #: An insert lets go over ``squeeze_release_steps`` (the ViperX's over 4 steps, as fast as
 #: its fingers open anyway, so its inserts are unchanged; the Franka Hand's over 9).
+#:
+#: The yaws (rad) about the vertical the pen may hang at over the holder. The LEAST_TURNS of
+#: them that turn the hand least from where it holds the pen (:func:`_least_turn_yaws`) are
+#: tried first, one by one, then all of them, the most natural hand first. (Chosen by
+#: naturalness alone, the joint-space carry could swing the pen the long way round, through
+#: tip up, and at the Franka's wrist accelerations the pen, held at the pads' lower edge,
+#: slid out of the fingers at the end of the swing.)
+INSERT_YAWS = tuple(k * math.pi / 6 for k in range(12))
+LEAST_TURNS = 4
 #: Candidate tip points in the holder: its centre and two rings around it (radii, m); the
 #: one farthest from the pens already in it is used.
 DROP_RINGS = (0.012, 0.022)
@@ -397,16 +406,43 @@ def _insert_to(ctx: SkillContext, side: str, held: str, insert: float) -> ArmPla
     tip = _drop_point(ctx, X_WH, held, insert)
     p = [tip[0], tip[1], rim - insert - shape.tip_point()[2]]
     deeper = insert - INSERTS[-1]
-    return place(
-        ctx,
-        side,
-        RigidTransform(RotationMatrix(), p),
-        approach_height=LOWER + deeper,
-        retreat=0.05 + deeper,
-        opening=ctx.model.embodiment.arm.gripper.opening_for_gap(RELEASE_GAP),
-        yaws=[k * math.pi / 6 for k in range(12)],
-        release_steps=squeeze_release_steps(ctx),
-    )
+    goal = RigidTransform(RotationMatrix(), p)
+
+    def put(yaws: list[float]) -> ArmPlan:
+        return place(
+            ctx,
+            side,
+            goal,
+            approach_height=LOWER + deeper,
+            retreat=0.05 + deeper,
+            opening=ctx.model.embodiment.arm.gripper.opening_for_gap(RELEASE_GAP),
+            yaws=yaws,
+            release_steps=squeeze_release_steps(ctx),
+        )
+
+    # the LEAST_TURNS least turns one by one, then every yaw (the most natural hand first)
+    for yaw in _least_turn_yaws(ctx, side, goal)[:LEAST_TURNS]:
+        try:
+            with ctx.transaction():
+                return put([yaw])
+        except PlanningError:
+            continue
+    return put(list(INSERT_YAWS))
+
+
+def _least_turn_yaws(ctx: SkillContext, side: str, goal: RigidTransform) -> list[float]:
+    """INSERT_YAWS (rad, about the vertical through `goal`) ordered by how far the hand turns
+    from where it is to hold the pen there: the least turn first (the pen, squeezed at the
+    pads' lower edge, creeps out of the grip in a long fast swing)."""
+    held = ctx.model.held[side]
+    X_TO = RigidTransform([-ctx.model.embodiment.arm.gripper.tcp_x, 0, 0]) @ held.X_GO
+    R_now = ctx.model.tcp_pose(ctx.q, side).rotation()
+
+    def turn(yaw: float) -> float:
+        R_goal = RotationMatrix.MakeZRotation(yaw) @ goal.rotation() @ X_TO.rotation().inverse()
+        return float((R_now.inverse() @ R_goal).ToAngleAxis().angle())
+
+    return sorted(INSERT_YAWS, key=turn)
 
 
 def _drop_point(ctx: SkillContext, X_WH: RigidTransform, held: str, insert: float) -> np.ndarray:

@@ -49,6 +49,7 @@ from bicoord_drake.stages.predicates import (
 )
 from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
+from bicoord_drake.tasks.turn_taking import hold_until_still
 
 PEDESTAL, CUBE, PAN, BRUSH, BIN = "pedestal", "cube", "dustpan", "brush", "bin"
 #: The pedestal: a fixed white block, 8 cm (x) by 10 cm (y), 10 cm tall, its centre at
@@ -114,10 +115,15 @@ LIFT = 0.06
 GAP, DROP = 0.006, 0.006
 #: The sweep: bristles this high above the pedestal's top, lowered from APPROACH above onto
 #: the start (the bristles START_GAP behind the cube), along -x until the bristles' front is
-#: SWEEP_PAST beyond the pedestal's edge (over the pan); slower than the other moves.
-BRISTLE_GAP, APPROACH, START_GAP, SWEEP_PAST = 0.003, 0.04, 0.012, 0.025
+#: SWEEP_PAST beyond the pedestal's edge (over the pan); slower than the other moves. (With
+#: 2.5 cm a cube that tipped over the edge into a pan sagging in a short-padded grip, the
+#: Franka Hand's, lay at the pan's lip, tumbled over it when tipped out and bounced off the
+#: bin's floor; 4.5 cm pushes it 2 cm further in.)
+BRISTLE_GAP, APPROACH, START_GAP, SWEEP_PAST = 0.003, 0.04, 0.012, 0.045
 SWEEP_SPEED = 0.35
-#: After the sweep the brush goes up APPROACH and back toward +x by BACK_OFF (m).
+#: After the sweep the brush goes up APPROACH and back toward +x by BACK_OFF (m), the pan held
+#: still meanwhile and until the cube is at rest in it (a cube that tipped over the edge can
+#: lean on the bristles: backing the pan away and up at once flipped it out over the lip).
 BACK_OFF = 0.04
 #: While the brush sweeps over the held dustpan (between its side walls, ~1.6 cm from each),
 #: the clearance between the arms' bodies and held tools is this (m) instead of 3 cm.
@@ -147,11 +153,12 @@ class SweepBlock(Task):
     the brush by its handle) and bring it to the pedestal together: the left holds the pan
     level with its front edge against the pedestal's left face, its floor just below the
     pedestal's top, while the right lowers the brush behind the cube and sweeps it across
-    the top, off the edge, into the pan. Then the right lifts the brush away and goes back
-    while the left carries the pan to the bin, turning it half around on the way so its
-    mouth faces the bin, and tips it forward about its front edge (held over the bin) until
-    the cube slides out into the bin; the right's way back, once the brush is off the pan,
-    takes as long as the carry and the tip (it ends as the pan is tilted back).
+    the top, off the edge, into the pan. Then the right lifts the brush off the pan (the pan
+    held still until the cube rests in it) and goes back while the left carries the pan to
+    the bin, turning it half around on the way so its mouth faces the bin, and tips it
+    forward about its front edge (held over the bin) until the cube slides out into the bin;
+    the right's way back takes as long as the carry and the tip (it ends as the pan is
+    tilted back).
 
     Coordination: both arms work throughout (each holds its tool from its pick on), but the
     layout keeps them apart in stages 1 and 3: the tools lie at the table's two ends (the
@@ -337,15 +344,17 @@ class SweepBlock(Task):
         # ---- stage 3: the right lifts the brush away, the left empties the pan into the bin
         # (the cube rides in the pan: the planning model, which does not carry it, leaves it
         # out; the pan itself is checked)
-        # The right's way home, once the brush is off the pan, is slowed to end with the
-        # left's last action, the tip (planned ahead from the planned carry; the real tip is
-        # planned once the carry is done, and the rest of the way home is timed to it).
+        # First the brush comes off the pan while the pan holds still, until the cube rests
+        # in it. The right's way home is then slowed to end with the left's last action, the
+        # tip (planned ahead from the planned carry; the real tip is planned once the carry is
+        # done, and the rest of the way home is timed to it).
         with ctx.model.ignoring([CUBE]):
-            up = brush_up(ctx)
-            right = up.then(retreat(ctx, "right"))
+            yield from run(merge(ctx, None, brush_up(ctx), ignore=[CUBE]))
+            yield from hold_until_still(ctx, view, [CUBE])
+            right = retreat(ctx, "right")
             left = to_bin(ctx)
             tip_steps = _tip_steps(ctx)
-            right = slowed_after(right, up.num_steps - 1, left.num_steps + tip_steps - TIP_MARGIN)
+            right = slowed_after(right, 0, left.num_steps + tip_steps - TIP_MARGIN)
             right, rest = split_at(right, left.num_steps - 1)
             ctx.q = ctx.with_arm("right", right.q[-1])
             yield from run(merge(ctx, left, right, stretch=False, ignore=[CUBE]))
