@@ -39,7 +39,7 @@ from bicoord_drake.planning.skills import (
     place,
     retreat,
 )
-from bicoord_drake.planning.skills.pick_place import carry_margin, hand_params
+from bicoord_drake.planning.skills.pick_place import carry_margin, hand_params, wall_close_opening
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     Predicate,
@@ -280,11 +280,20 @@ class PlacePlateAndCup(Task):
                     reasons.append(err.reason)
             raise PlanningError("hover_failed", f"right cannot hold its cup near {xy} ({reasons})")
 
+        def pick_plate(name: str):
+            """Left picks plate `name` by its rim, the pads pressed at most half their
+            thickness into the wall (closed fully, the Franka Hand's pads held the wall and
+            dragged the plate 3 cm off its target as they opened: franka seeds 3, 5, 13, 20)."""
+            close = wall_close_opening(ctx, PLATE.wall)
+            return pick(
+                ctx, "left", name, grasps=plate_grasps(ctx, "left", name), close_opening=close
+            )
+
         def pick_cup(name: str):
             return pick(ctx, "right", name, grasps=cup_grasps(ctx, "right", name))
 
         # ---- stage 1: left picks plate 1 by its rim, right picks cup 1
-        left = pick(ctx, "left", plates[0], grasps=plate_grasps(ctx, "left", plates[0]))
+        left = pick_plate(plates[0])
         right = pick_cup(cups[0])
         yield from run(merge(ctx, left, right))
         # ---- stage 2: left lays plate 1 on target 1, right holds cup 1 over it; then right
@@ -294,7 +303,7 @@ class PlacePlateAndCup(Task):
         yield from run(merge(ctx, left, right))
         # (left is planned first: it leaves the plate, so the cup's descent plans around
         # where it goes; merge() delays the cup while the two would meet)
-        left = pick(ctx, "left", plates[1], grasps=plate_grasps(ctx, "left", plates[1]))
+        left = pick_plate(plates[1])
         yield from run(set_cup(ctx, left, cup_goal(plates[0])))
         # ---- stage 3: left carries plate 2 over target 2 while right picks cup 2
         # (right is planned first: it leaves plate 1 for its own side, out of the left arm's
