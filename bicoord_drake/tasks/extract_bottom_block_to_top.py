@@ -34,6 +34,7 @@ from bicoord_drake.planning.skills import (
     slowed_after,
     track,
 )
+from bicoord_drake.planning.skills.pick_place import MAX_GRASP_TRIES, roomy_grasps
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     all_of,
@@ -74,6 +75,11 @@ PULL = 0.10
 HELD_UP = 0.01
 #: Control steps between the end of the lifter's lift and the start of the pull.
 PULL_LAG = 2
+#: The lifter lowers the middle cube until it is LOWER_GAP (m) above the platform; before it
+#: grasps, it checks that it can track that lowering LOWER_MARGIN (m) further (the cube slips
+#: a little in the grasp).
+LOWER_GAP = 0.002
+LOWER_MARGIN = 0.003
 #: Most control steps one arm's approach may be delayed so that the two approaches do not meet.
 MAX_DELAY = 60
 #: Control steps over which a gripper lets go of a cube on the stack.
@@ -251,14 +257,7 @@ def _extract(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> Motion:
     """Both arms grasp at once; the lifter lifts the middle cube LIFT; the extractor's pull
     starts PULL_LAG steps after the lift is complete (or when its own grasp is, if later)."""
     bottom, middle, top = BLOCKS
-    X_top = ctx.model.object_pose(top)
-    grasp = pick(ctx, lifter, middle, lift=0.0, grasps=_lifter_grasps(ctx, scene, ext, lifter))
-    up = _vertical(ctx, lifter, LIFT, ignore=[top, bottom], label="lift the middle cube")
-    # the top cube rides on the middle one
-    ctx.model.set_object_pose(
-        top, RigidTransform(X_top.rotation(), X_top.translation() + [0, 0, LIFT])
-    )
-    lift_plan = grasp.then(up)
+    lift_plan = _lift(ctx, scene, ext, lifter)
     # the top cube now rests on the held middle one: left out of the checks (it is above both)
     with _close(ctx), ctx.model.ignoring([top]):
         takes = _grasps(ctx, scene, bottom, ext, _inward(ext))
@@ -266,6 +265,59 @@ def _extract(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> Motion:
         away = np.array([1.0 if ext == "right" else -1.0, 0.0, 0.0])
         out = pull(ctx, ext, away, PULL, ignore=[PLATFORM])
     return _pull_after_lift(ctx, ext, take, out, lift_plan, ignore=[top])
+
+
+def _lift(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> ArmPlan:
+    """The lifter grasps the middle cube (the first of its grasps that plans, as `pick` would
+    take it) and lifts it LIFT, the top cube riding on it. Where the arm, so holding it, could
+    not then track it straight down onto the platform (the lowering of stage 2, LOWER_MARGIN
+    further; a wrist at its joint limit: franka seeds 6, 16, 23, 29), the next grasp - the same
+    faces with the hand turned over is often the one whose wrist has room."""
+    bottom, middle, top = BLOCKS
+    X_top = ctx.model.object_pose(top)
+    X_mid = ctx.model.object_pose(middle)
+    grasps = roomy_grasps(ctx, lifter, middle, _lifter_grasps(ctx, scene, ext, lifter))
+    drop = LIFT + scene.draws["edge"] - LOWER_GAP + LOWER_MARGIN
+    reasons = []
+    for g in grasps[:MAX_GRASP_TRIES]:
+        saved = (ctx.q.copy(), dict(ctx.opening))
+        try:
+            grasp = pick(ctx, lifter, middle, lift=0.0, grasps=[g])
+        except PlanningError as err:
+            reasons.append(err.reason)
+            continue
+        try:
+            up = _vertical(ctx, lifter, LIFT, ignore=[top, bottom], label="lift the middle cube")
+            # the top cube rides on the middle one
+            ctx.model.set_object_pose(
+                top, RigidTransform(X_top.rotation(), X_top.translation() + [0, 0, LIFT])
+            )
+            _check_lowering(ctx, lifter, drop)
+        except PlanningError as err:
+            reasons.append(err.reason)
+            ctx.model.detach(lifter, X_WO=X_mid)
+            ctx.model.set_object_pose(top, X_top)
+            ctx.q, ctx.opening = saved
+            continue
+        return grasp.then(up)
+    raise PlanningError(
+        "pick_failed",
+        f"{lifter} cannot grasp and lift {middle!r}: tried {len(reasons)} grasps "
+        f"({', '.join(reasons)})",
+    )
+
+
+def _check_lowering(ctx: SkillContext, lifter: str, drop: float) -> None:
+    """Raise the PlanningError of the lifter's straight lowering by `drop` (m) from where it
+    is (planned, then undone; the bottom cube, still under it, is left out: it will have been
+    pulled out)."""
+    bottom, middle, top = BLOCKS
+    q = ctx.q.copy()
+    try:
+        with _close(ctx):
+            _vertical(ctx, lifter, -drop, ignore=[top, bottom, PLATFORM], label="lower the stack")
+    finally:
+        ctx.q = q
 
 
 def _pull_after_lift(
@@ -310,7 +362,7 @@ def _lower_and_raise(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> 
     edge = scene.draws["edge"]
     X_mid = ctx.model.object_pose(middle)
     X_top = ctx.model.object_pose(top)
-    drop = X_mid.translation()[2] - (PLATFORM_TOP + edge / 2 + 0.002)
+    drop = X_mid.translation()[2] - (PLATFORM_TOP + edge / 2 + LOWER_GAP)
     down = _vertical(ctx, lifter, -drop, ignore=[top, PLATFORM], label="lower the stack")
     lowered = RigidTransform(X_top.rotation(), X_top.translation() - [0, 0, drop])
     ctx.model.set_object_pose(top, lowered)

@@ -7,7 +7,7 @@ Measurements of the expert in physics: benchmarks/bench_task_place_plate_and_cup
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import replace
 from functools import partial
 
@@ -37,9 +37,15 @@ from bicoord_drake.planning.skills import (
     merge,
     pick,
     place,
+    plan_both,
     retreat,
 )
-from bicoord_drake.planning.skills.pick_place import carry_margin, hand_params
+from bicoord_drake.planning.skills.pick_place import (
+    carry_margin,
+    hand_params,
+    squeeze_release_steps,
+    wall_close_opening,
+)
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     Predicate,
@@ -280,22 +286,35 @@ class PlacePlateAndCup(Task):
                     reasons.append(err.reason)
             raise PlanningError("hover_failed", f"right cannot hold its cup near {xy} ({reasons})")
 
+        def pick_plate(name: str):
+            """Left picks plate `name` by its rim, the pads pressed at most half their
+            thickness into the wall (closed fully, the Franka Hand's pads held the wall and
+            dragged the plate 3 cm off its target as they opened: franka seeds 3, 5, 13, 20)."""
+            close = wall_close_opening(ctx, PLATE.wall)
+            return pick(
+                ctx, "left", name, grasps=plate_grasps(ctx, "left", name), close_opening=close
+            )
+
         def pick_cup(name: str):
             return pick(ctx, "right", name, grasps=cup_grasps(ctx, "right", name))
 
-        # ---- stage 1: left picks plate 1 by its rim, right picks cup 1
-        left = pick(ctx, "left", plates[0], grasps=plate_grasps(ctx, "left", plates[0]))
-        right = pick_cup(cups[0])
+        # ---- stage 1: left picks plate 1 by its rim, right picks cup 1 (the left planned
+        # first; only where the right then finds no pick, the right first and the left around
+        # it: a wide hand over cup 1 met the left one lifting its plate, franka seeds 11, 23)
+        left, right = plan_both(
+            ctx, {"left": lambda: pick_plate(plates[0]), "right": lambda: pick_cup(cups[0])}
+        )
         yield from run(merge(ctx, left, right))
         # ---- stage 2: left lays plate 1 on target 1, right holds cup 1 over it; then right
-        # sets the cup on the plate while left picks plate 2
-        left = place(ctx, "left", plate_goal(targets[0]))
+        # sets the cup on the plate while left picks plate 2. A plate is let go over
+        # squeeze_release_steps (the ViperX's as fast as its fingers open anyway; franka seed
+        # 8: the lighter grip's plate, let go at once, bounced and caught a finger backing off)
+        left = place(ctx, "left", plate_goal(targets[0]), release_steps=squeeze_release_steps(ctx))
         right = hover(targets[0])
         yield from run(merge(ctx, left, right))
         # (left is planned first: it leaves the plate, so the cup's descent plans around
         # where it goes; merge() delays the cup while the two would meet)
-        left = pick(ctx, "left", plates[1], grasps=plate_grasps(ctx, "left", plates[1]))
-        yield from run(set_cup(ctx, left, cup_goal(plates[0])))
+        yield from run(set_cup(ctx, lambda: pick_plate(plates[1]), cup_goal(plates[0])))
         # ---- stage 3: left carries plate 2 over target 2 while right picks cup 2
         # (right is planned first: it leaves plate 1 for its own side, out of the left arm's
         # way across the table)
@@ -303,26 +322,34 @@ class PlacePlateAndCup(Task):
         left = carry_above(ctx, "left", plate_goal(targets[1]), height=0.08)
         yield from run(merge(ctx, left, right))
         # ---- stage 4: left lays plate 2, right holds cup 2 over it, then sets it
-        left = place(ctx, "left", plate_goal(targets[1]))
+        left = place(ctx, "left", plate_goal(targets[1]), release_steps=squeeze_release_steps(ctx))
         right = hover(targets[1])
         yield from run(merge(ctx, left, right))
-        yield from run(set_cup(ctx, retreat(ctx, "left"), cup_goal(plates[1])))
+        yield from run(set_cup(ctx, lambda: retreat(ctx, "left"), cup_goal(plates[1])))
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
 
 # -------------------------------------------------------------------- expert helpers
-def set_cup(ctx: SkillContext, left: ArmPlan, X_WO_goal: RigidTransform) -> Motion:
-    """The right arm sets its cup at `X_WO_goal` while the left does `left` (leaving the
-    plate): the cup is carried above its goal in the same motion as `left`, then lowered and
-    released. A merged motion leaves out of its arm-against-arm check every object released
+def set_cup(
+    ctx: SkillContext, plan_left: Callable[[], ArmPlan], X_WO_goal: RigidTransform
+) -> Motion:
+    """The right arm sets its cup at `X_WO_goal` while the left does what `plan_left` plans
+    (leaving the plate): the cup is carried above its goal in the same motion, then lowered
+    and released. The left's part is planned first, the carry around where it ends; only where
+    the carry then has no plan, the carry first and the left's part around it (`plan_both`:
+    franka seed 19, the right hand over plate 1 met the left one lifting plate 2).
+    A merged motion leaves out of its arm-against-arm check every object released
     or picked in it, so a whole place (it releases the cup) beside the left's motion would not
     see the held cup: the left's wrist, leaving the plate, swept through the cup the right
     was bringing over it and knocked it out of the hand (seeds 10, 11, 19, 28, 29; on seed 23
     it came to lean on the right's fingers, and the next pick started in collision). Carried
     still held, the cup is checked with the right hand, and merge() delays it until the left
     is clear; the lowering runs after the left is done."""
-    both = merge(ctx, left, carry_above(ctx, "right", X_WO_goal))
+    left, right = plan_both(
+        ctx, {"left": plan_left, "right": lambda: carry_above(ctx, "right", X_WO_goal)}
+    )
+    both = merge(ctx, left, right)
     return both.then(merge(ctx, None, place(ctx, "right", X_WO_goal)))
 
 

@@ -133,6 +133,18 @@ def squeeze_release_steps(ctx: SkillContext) -> int:
     return math.ceil(ctx.model.embodiment.arm.gripper.force_limit / RELEASE_RATE)
 
 
+def wall_close_opening(ctx: SkillContext, thickness: float) -> float:
+    """The closing command of a grip across a wall `thickness` m thick (a bowl's or a plate's
+    rim): the jaw gap is the wall less one pad thickness, so the finger servo presses each
+    compliant pad at most half its thickness into the wall. A pad pressed past its middle
+    holds a rigid wall: opening then drags the object along, and backing off lifts it (the
+    Franka Hand closed fully, its fingers stroking to 0, 3 mm pads). Fully closed (0) where
+    that gap is past the fingers' stroke: the ViperX's fingers stop 4 mm from the middle, so
+    its command on a 9-12 mm wall stays 0."""
+    gripper = ctx.model.embodiment.arm.gripper
+    return gripper.opening_for_gap(thickness - gripper.pad_thickness)
+
+
 def pick_sliding(
     ctx: SkillContext,
     side: str,
