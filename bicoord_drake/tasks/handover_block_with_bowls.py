@@ -23,6 +23,7 @@ from bicoord_drake.planning.skills import (
     ArmPlan,
     Motion,
     SkillContext,
+    grip,
     hold,
     merge,
     move,
@@ -106,7 +107,12 @@ SETTLE_STEPS = 6
 #: 3 mm over the pouring bowl's base catches it (lifted, tilted, still touched after the
 #: back-off); the release must not start the rocking. Each bowl is lowered until it stands on
 #: the table (not 2 mm above it, where the loosening grip let it pivot and drop), the arm
-#: holds still while its servos catch up with the lowering, and the gripper opens slowly.
+#: holds still while its servos catch up with the lowering, and the gripper opens slowly. The
+#: left opens only GRIP_MARGIN per side off the wall, and fully once backed off: opened fully
+#: at the table, its fingers tipped the empty pouring bowl 10 deg and pushed it 2.5 cm, and it
+#: rose with the backing-off hand (SAP, seeds 5, 7, 15, 24). (The right, whose rim grasp on the
+#: catching bowl was approached fully open, kept the bowl between its fingers when opened so
+#: little (seed 21): it opens fully.)
 SET_DOWN = 0.0  # bowl bottom above the table at the release, m
 HOLD_BEFORE_RELEASE = 4  # control steps held still, gripper closed, before opening
 RELEASE_STEPS = 10  # control steps over which the gripper opens
@@ -299,9 +305,10 @@ class HandoverBlockWithBowls(Task):
                 ctx,
                 "left",
                 table_target(left_xy, scene.object("pour_bowl").shape, clearance=SET_DOWN),
+                opening=_wall_opening(ctx),
                 release_steps=RELEASE_STEPS,
                 settle_steps=HOLD_BEFORE_RELEASE,
-            )
+            ).then(grip(ctx, "left", 1.0, settle_steps=0, label="open above the bowl"))
             right = place(
                 ctx,
                 "right",
@@ -370,10 +377,13 @@ def _pick_pour_bowl(ctx: SkillContext, lift: float) -> ArmPlan:
 
     # The jaw only as wide as the wall plus a few mm: fully open, the inner finger would come
     # down near the bowl's centre and sweep the cube against the wall, where it stays pinned.
-    gripper = ctx.model.embodiment.arm.gripper
-    opening = float(gripper.opening(POUR_WALL / 2 + GRIP_MARGIN))
     candidates = [g for g in grasps if on_the_left_side(g)]
-    return pick(ctx, side, name, lift=lift, grasps=candidates, approach_opening=opening)
+    return pick(ctx, side, name, lift=lift, grasps=candidates, approach_opening=_wall_opening(ctx))
+
+
+def _wall_opening(ctx: SkillContext) -> float:
+    """The gripper opening that clears the pouring bowl's wall by GRIP_MARGIN per side."""
+    return float(ctx.model.embodiment.arm.gripper.opening(POUR_WALL / 2 + GRIP_MARGIN))
 
 
 def _meet_and_pour(
