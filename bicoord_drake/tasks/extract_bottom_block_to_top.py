@@ -34,7 +34,6 @@ from bicoord_drake.planning.skills import (
     slowed_after,
     track,
 )
-from bicoord_drake.planning.skills.pick_place import MAX_GRASP_TRIES, roomy_grasps
 from bicoord_drake.stages import Stage
 from bicoord_drake.stages.predicates import (
     all_of,
@@ -268,43 +267,26 @@ def _extract(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> Motion:
 
 
 def _lift(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> ArmPlan:
-    """The lifter grasps the middle cube (the first of its grasps that plans, as `pick` would
-    take it) and lifts it LIFT, the top cube riding on it. Where the arm, so holding it, could
-    not then track it straight down onto the platform (the lowering of stage 2, LOWER_MARGIN
-    further; a wrist at its joint limit: franka seeds 6, 16, 23, 29), the next grasp - the same
-    faces with the hand turned over is often the one whose wrist has room."""
+    """The lifter grasps the middle cube (the first of its grasps that plans) and lifts it
+    LIFT, the top cube riding on it. Where the arm, so holding it, could not then track it
+    straight down onto the platform (the lowering of stage 2, LOWER_MARGIN further; a wrist at
+    its joint limit: franka seeds 6, 16, 23, 29), the next grasp - the same faces with the hand
+    turned over is often the one whose wrist has room."""
     bottom, middle, top = BLOCKS
     X_top = ctx.model.object_pose(top)
-    X_mid = ctx.model.object_pose(middle)
-    grasps = roomy_grasps(ctx, lifter, middle, _lifter_grasps(ctx, scene, ext, lifter))
     drop = LIFT + scene.draws["edge"] - LOWER_GAP + LOWER_MARGIN
-    reasons = []
-    for g in grasps[:MAX_GRASP_TRIES]:
-        saved = (ctx.q.copy(), dict(ctx.opening))
-        try:
-            grasp = pick(ctx, lifter, middle, lift=0.0, grasps=[g])
-        except PlanningError as err:
-            reasons.append(err.reason)
-            continue
-        try:
-            up = _vertical(ctx, lifter, LIFT, ignore=[top, bottom], label="lift the middle cube")
-            # the top cube rides on the middle one
-            ctx.model.set_object_pose(
-                top, RigidTransform(X_top.rotation(), X_top.translation() + [0, 0, LIFT])
-            )
-            _check_lowering(ctx, lifter, drop)
-        except PlanningError as err:
-            reasons.append(err.reason)
-            ctx.model.detach(lifter, X_WO=X_mid)
-            ctx.model.set_object_pose(top, X_top)
-            ctx.q, ctx.opening = saved
-            continue
-        return grasp.then(up)
-    raise PlanningError(
-        "pick_failed",
-        f"{lifter} cannot grasp and lift {middle!r}: tried {len(reasons)} grasps "
-        f"({', '.join(reasons)})",
-    )
+
+    def lift_checked() -> ArmPlan:
+        up = _vertical(ctx, lifter, LIFT, ignore=[top, bottom], label="lift the middle cube")
+        # the top cube rides on the middle one
+        ctx.model.set_object_pose(
+            top, RigidTransform(X_top.rotation(), X_top.translation() + [0, 0, LIFT])
+        )
+        _check_lowering(ctx, lifter, drop)
+        return up
+
+    grasps = _lifter_grasps(ctx, scene, ext, lifter)
+    return pick(ctx, lifter, middle, lift=0.0, grasps=grasps, then=lift_checked)
 
 
 def _check_lowering(ctx: SkillContext, lifter: str, drop: float) -> None:

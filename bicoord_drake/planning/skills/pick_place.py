@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
+from contextlib import nullcontext
 from dataclasses import replace
 
 import numpy as np
@@ -53,6 +54,7 @@ def pick(
     approach_opening: float | None = None,
     close_opening: float = 0.0,
     grasp_clearance: float | None = None,
+    then: Callable[[], ArmPlan] | None = None,
 ) -> ArmPlan:
     """Approach, grasp and lift object `name` with `side`; it is attached afterwards.
 
@@ -62,7 +64,10 @@ def pick(
     the command `close_opening` (default fully closed: the fingers squeeze the object as hard
     as their stiffness and force limit let them). `grasp_clearance` (m) replaces the
     environment clearance the hand keeps at the grasp pose itself (default
-    ``ctx.env_clearance``), e.g. a smaller one for an object lying close to a wall."""
+    ``ctx.env_clearance``), e.g. a smaller one for an object lying close to a wall. `then`
+    plans what must follow the lift from each grasp (the object held); its plan is appended,
+    and where it raises a PlanningError everything it and the grasp changed is rolled back
+    (:meth:`SkillContext.transaction`) and the next grasp is tried."""
     X_WO = ctx.model.object_pose(name)
     if grasps is None:
         base = arm_base(ctx.model.embodiment, side)
@@ -84,15 +89,11 @@ def pick(
             continue
         saved = (ctx.q.copy(), dict(ctx.opening))
         try:
-            approach = move(ctx, side, q_pre, label="approach")
-            if approach_opening is not None:  # narrow the jaw on the way, not after
-                ramp = np.clip(np.arange(approach.num_steps) / ctx.gripper_steps, 0, 1)
-                approach.opening = approach.opening + ramp * (approach_opening - approach.opening)
-                ctx.opening[side] = approach_opening
-            descend = move(ctx, side, q_grasp, label="descend", ignore=[name], straight=True)
-            close = grip(ctx, side, close_opening, label="close")
-            ctx.model.attach(name, side, ctx.q)
-            up = move(ctx, side, q_lift, label="lift", ignore=[name], straight=True)
+            with ctx.transaction() if then is not None else nullcontext():
+                approach, descend, close, up = _grasp_moves(
+                    ctx, side, name, (q_pre, q_grasp, q_lift), approach_opening, close_opening
+                )
+                follow = [then()] if then is not None else []
         except PlanningError as err:
             if side in ctx.model.held:
                 ctx.model.detach(side, X_WO=X_WO)
@@ -103,6 +104,8 @@ def pick(
         plan.events.append(
             (approach.num_steps + descend.num_steps + close.num_steps - 3, "attach", name)
         )
+        if follow:  # after the lift as planned (a zero lift adds no sample to follow on)
+            plan = plan.then(*follow)
         plan.label = f"pick {name}"
         return plan
     raise PlanningError(
@@ -110,6 +113,29 @@ def pick(
         f"{side} cannot pick {name!r}: tried "
         f"{min(len(grasps), MAX_GRASP_TRIES)} grasps ({', '.join(reasons)})",
     )
+
+
+def _grasp_moves(
+    ctx: SkillContext,
+    side: str,
+    name: str,
+    keyframes: tuple[np.ndarray, np.ndarray, np.ndarray],
+    approach_opening: float | None,
+    close_opening: float,
+) -> tuple[ArmPlan, ArmPlan, ArmPlan, ArmPlan]:
+    """The approach, descent, closing and lift of one grasp through its (pregrasp, grasp,
+    lift) joint keyframes; the object is attached at the closing."""
+    q_pre, q_grasp, q_lift = keyframes
+    approach = move(ctx, side, q_pre, label="approach")
+    if approach_opening is not None:  # narrow the jaw on the way, not after
+        ramp = np.clip(np.arange(approach.num_steps) / ctx.gripper_steps, 0, 1)
+        approach.opening = approach.opening + ramp * (approach_opening - approach.opening)
+        ctx.opening[side] = approach_opening
+    descend = move(ctx, side, q_grasp, label="descend", ignore=[name], straight=True)
+    close = grip(ctx, side, close_opening, label="close")
+    ctx.model.attach(name, side, ctx.q)
+    up = move(ctx, side, q_lift, label="lift", ignore=[name], straight=True)
+    return approach, descend, close, up
 
 
 def hand_params(ctx: SkillContext, params: GraspParams | None = None) -> GraspParams:
