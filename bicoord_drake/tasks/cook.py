@@ -107,7 +107,29 @@ POUR_DIRECTIONS = tuple(
     for a in (0, 225, 45, 315, 180, 270, 90, 135)
 )
 POUR_ANGLES = (2.5, 2.3, 2.1)
+#: Serve, tried before the above: the gripper on the pan's far side from the lip (cosine at
+#: most FAR_GRIP_ALIGNMENT). A grip beside the tilt axis (cosine near 0) turns the pan about
+#: the jaw's own axis, which the pads resist only by friction: under SAP the pan pivots in
+#: them and hangs at 105-114 deg whatever the plan (seeds 1, 5, 8, 16: 2.3-2.5 rad planned),
+#: and the rolls (they slide off its wall at ~114 deg) stay in. From the far side the pan
+#: follows the hand more closely, so a smaller tilt serves (FAR_POUR_ANGLES; 2.5 rad threw
+#: rolls past the plate's rim). Far-side tilts are often out of the right arm's reach:
+#: FAR_DIRECTIONS (every 22.5 deg) and FAR_LIP_OFFSETS widen the search
+#: (benchmarks/bench_task_cook.md).
+FAR_GRIP_ALIGNMENT = -0.5
+FAR_DIRECTIONS = tuple(
+    (float(np.cos(np.radians(a))), float(np.sin(np.radians(a))), 0.0)
+    for a in (0, 225, 45, 315, 180, 270, 90, 135)
+    + (202.5, 247.5, 22.5, 337.5, 157.5, 292.5, 67.5, 112.5)
+)
+FAR_LIP_OFFSETS = (-0.075, -0.05, -0.10)
+FAR_POUR_ANGLES = (2.2, 2.1)
 POUR_HEIGHT = 0.015
+#: Serve: how far (m) the lip, the pan's lowest point once tipped past 90 deg, is lowered
+#: during the rest of the tilt (``pour(descend=)``): the rolls leave 4 cm nearer the plate.
+#: Without it, rolls sliding out of the far-side tilt landed on or past the plate's far rim
+#: (seeds 20, 24 at -0.075; 0, 7, 12, 14 with the lip at -0.095).
+POUR_DESCEND = 0.04
 POUR_LIP_OFFSET = -0.075
 POUR_HOLD = 20
 #: Serve: how many more times the skillet is tipped while a roll is measured in it after the
@@ -138,7 +160,9 @@ class Cook(Task):
     target velocity; long side across the flight, least spin) while the right arm carries the
     skillet, levelled, under the predicted landing point, synchronized with the throw; then the
     second roll, aimed beside the first as measured in the pan. The left arm goes home, the
-    right arm shakes the skillet +-5 cm twice and tips it about its rim over the plate.
+    right arm shakes the skillet +-5 cm twice and tips it about its rim over the plate (held
+    from the pan's far side where the arm reaches it, the lip lowered toward the plate as it
+    tips past 90 degrees).
 
     The skillet is a rim-held bowl, not a pan with a handle bar: ``skills.toss`` catches with a
     ``BowlShape`` held by its rim, and a straight 12 mm wall is what holds level in the grip
@@ -591,48 +615,84 @@ def _shake(ctx: SkillContext, side: str) -> ArmPlan:
 
 def _serve(ctx: SkillContext, side: str, plate: np.ndarray) -> ArmPlan:
     """Carry the skillet, level, so that its rim point toward the pour direction lies over the
-    plate's centre, its bottom POUR_HEIGHT above the plate's rim, then tip it about that rim
-    point, hold and tilt back. Pour directions (POUR_DIRECTIONS), the skillet's turn about its
-    axis (the gripper away from the pour side first) and POUR_ANGLES are tried until the carry
-    and the tilt both plan."""
+    plate, its bottom POUR_HEIGHT above the plate's rim, then tip it about that rim point
+    (lowered by POUR_DESCEND past 90 deg), hold and tilt back. Grips on the pan's far side
+    first (FAR_LIP_OFFSETS x FAR_DIRECTIONS, tilts FAR_POUR_ANGLES), then any grip not toward
+    the lip (POUR_DIRECTIONS, POUR_ANGLES). Within a direction the skillet's turn about its
+    axis puts the gripper as far from the lip as it plans; the first carry and tilt that both
+    plan win."""
+    reasons: list[str] = []
+    searches = [
+        (FAR_DIRECTIONS, offset, -np.inf, FAR_GRIP_ALIGNMENT, FAR_POUR_ANGLES)
+        for offset in FAR_LIP_OFFSETS
+    ]
+    searches.append((POUR_DIRECTIONS, POUR_LIP_OFFSET, -np.inf, POUR_GRIP_ALIGNMENT, POUR_ANGLES))
+    for directions, offset, low, high, angles in searches:
+        for d in directions:
+            plan = _serve_toward(
+                ctx, side, plate, np.asarray(d), offset, (low, high), angles, reasons
+            )
+            if plan is not None:
+                return plan
+    counts = ", ".join(f"{r} x{n}" for r, n in Counter(reasons).most_common())
+    raise PlanningError("serve_failed", f"{side} cannot tip the skillet over the plate ({counts})")
+
+
+def _serve_toward(
+    ctx: SkillContext,
+    side: str,
+    plate: np.ndarray,
+    d: np.ndarray,
+    lip_offset: float,
+    alignment: tuple[float, float],
+    angles: tuple[float, ...],
+    reasons: list[str],
+) -> ArmPlan | None:
+    """The serve toward `d` with the lip `lip_offset` (m) past the plate's centre, over the
+    skillet's turns whose grip cosine lies in `alignment` (low, high], most far-side first, and
+    `angles`; None (reasons appended) when none plans."""
     held = ctx.model.held[side]
     gripper = ctx.model.embodiment.arm.gripper
     X_BT = held.X_GO.inverse() @ RigidTransform([gripper.tcp_x, 0, 0])
     R_WB = ctx.model.held_pose(side, ctx.q).rotation()
     saved = ctx.q.copy()
-    reasons = []
-    for d in POUR_DIRECTIONS:
-        d = np.asarray(d, dtype=float)
-        lip = plate[:2] + POUR_LIP_OFFSET * d[:2]
-        centre = lip - (SKILLET.radius - 0.01) * d[:2]
-        p_B = np.array([*centre, plate[2] + PLATE.height + POUR_HEIGHT])
-        options = []
-        for yaw in np.linspace(0, 2 * np.pi, 12, endpoint=False):
-            X_WB = RigidTransform(RotationMatrix.MakeZRotation(yaw) @ R_WB, p_B)
-            X_WT = X_WB @ X_BT
-            grip = (X_WT.translation() - p_B)[:2]
-            grip /= max(float(np.linalg.norm(grip)), 1e-9)
-            options.append((float(grip @ d[:2]), X_WT))
-        usable = [o for o in options if o[0] <= POUR_GRIP_ALIGNMENT]
-        for _, X_WT in sorted(usable, key=lambda o: o[0]):
+    lip = plate[:2] + lip_offset * d[:2]
+    centre = lip - (SKILLET.radius - 0.01) * d[:2]
+    p_B = np.array([*centre, plate[2] + PLATE.height + POUR_HEIGHT])
+    options = []
+    for yaw in np.linspace(0, 2 * np.pi, 12, endpoint=False):
+        X_WB = RigidTransform(RotationMatrix.MakeZRotation(yaw) @ R_WB, p_B)
+        X_WT = X_WB @ X_BT
+        grip = (X_WT.translation() - p_B)[:2]
+        grip /= max(float(np.linalg.norm(grip)), 1e-9)
+        options.append((float(grip @ d[:2]), X_WT))
+    low, high = alignment
+    usable = [o for o in options if low < o[0] <= high]
+    for _, X_WT in sorted(usable, key=lambda o: o[0]):
+        try:
+            q6 = solve_tcp(ctx, side, TcpTarget(X_WT))
+        except PlanningError as err:
+            reasons.append(err.reason)
+            continue
+        for angle in angles:
             try:
-                q6 = solve_tcp(ctx, side, TcpTarget(X_WT))
+                carry = move(ctx, side, q6, label="carry to the plate")
+                tip = pour(
+                    ctx,
+                    side,
+                    angle,
+                    direction=d,
+                    hold_steps=POUR_HOLD,
+                    descend=POUR_DESCEND,
+                )
             except PlanningError as err:
+                ctx.q = saved.copy()
                 reasons.append(err.reason)
                 continue
-            for angle in POUR_ANGLES:
-                try:
-                    carry = move(ctx, side, q6, label="carry to the plate")
-                    tip = pour(ctx, side, angle, direction=d, hold_steps=POUR_HOLD)
-                except PlanningError as err:
-                    ctx.q = saved.copy()
-                    reasons.append(err.reason)
-                    continue
-                plan = carry.then(tip)
-                plan.label = f"serve: tip the skillet {angle:.1f} rad toward {d.tolist()}"
-                return plan
-    counts = ", ".join(f"{r} x{n}" for r, n in Counter(reasons).most_common())
-    raise PlanningError("serve_failed", f"{side} cannot tip the skillet over the plate ({counts})")
+            plan = carry.then(tip)
+            plan.label = f"serve: tip the skillet {angle:.1f} rad toward {np.round(d, 3).tolist()}"
+            return plan
+    return None
 
 
 # -------------------------------------------------------------------- scene helpers

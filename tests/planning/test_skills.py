@@ -187,6 +187,29 @@ def test_pour_about_a_given_pivot_keeps_that_point_still():
     assert max(mouth) == pytest.approx(np.sin(np.radians(45)), abs=1e-3)  # tipped toward d
 
 
+def test_pour_descending_lowers_the_lip_only_past_90_degrees():
+    ctx = sk.SkillContext(
+        PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75
+    )
+    sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=0.15)
+    X0 = ctx.model.held_pose("left", ctx.q)
+    q0 = ctx.q.copy()
+    d = np.array([-1.0, 0.0, 0.0])
+    lip = X0.translation() + 0.05 * X0.rotation().col(2) + 0.075 * d
+    angle, drop = np.radians(110), 0.03
+    pour = sk.pour(ctx, "left", angle, direction=d, descend=drop, hold_steps=3)
+    poses = [ctx.model.held_pose("left", np.r_[q6, q0[6:]]) for q6 in pour.q]
+    p_O = X0.inverse() @ lip
+    tilts = np.array([np.arccos(np.clip(X.rotation().col(2)[2], -1, 1)) for X in poses])
+    drops = np.array([lip[2] - (X @ p_O)[2] for X in poses])
+    moved = np.array([np.linalg.norm((X @ p_O - lip)[:2]) for X in poses])
+    assert max(tilts) == pytest.approx(angle, abs=1e-3)
+    assert np.all(np.abs(drops[tilts < np.pi / 2 - 1e-3]) < 1e-3)  # still the fixed pivot
+    assert max(drops) == pytest.approx(drop, abs=1e-3)  # lowered at the full tilt
+    assert np.all(moved < 1e-3)  # straight down, never sideways
+    assert np.allclose(pour.q[-1], q0[:6], atol=1e-3)  # and back up, level
+
+
 def test_rehearsal_puts_the_state_back_whether_the_plan_works_or_not():
     ctx = sk.SkillContext(
         PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75

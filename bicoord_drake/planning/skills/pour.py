@@ -23,6 +23,7 @@ def pour(
     back: bool = True,
     ignore: Iterable[str] = (),
     pivot: Sequence[float] | None = None,
+    descend: float = 0.0,
 ) -> ArmPlan:
     """Tilt the held container by `angle` (rad) about the horizontal axis through its rim
     point in `direction`, hold `hold_steps`, and tilt back.
@@ -31,7 +32,9 @@ def pour(
     rotation (IK at every control sample). Without a `direction`, the horizontal axes are
     tried beside the grasp first (toward the other arm first), never over the gripper.
     `pivot` (a world point, e.g. a spout's lip) replaces the rim point: the container turns
-    about the horizontal axis through it, across `direction`."""
+    about the horizontal axis through it, across `direction`. A `descend` (m) lowers the pivot
+    that far while the tilt goes on past 90 deg, where the lip is the container's lowest point:
+    it pours close to what it pours onto."""
     held = ctx.model.held.get(side)
     if held is None:
         raise PlanningError("gripper_empty", f"{side} holds no container to pour from")
@@ -51,7 +54,7 @@ def pour(
     for d in options:
         saved = ctx.q.copy()
         try:
-            return _pour(ctx, side, held.name, angle, d, hold_steps, back, ignore, pivot)
+            return _pour(ctx, side, held.name, angle, d, hold_steps, back, ignore, pivot, descend)
         except PlanningError as err:
             ctx.q = saved
             reasons.append(err.reason)
@@ -61,7 +64,9 @@ def pour(
     )
 
 
-def _pour(ctx: SkillContext, side, name, angle, d, hold_steps, back, ignore, pivot=None) -> ArmPlan:
+def _pour(
+    ctx: SkillContext, side, name, angle, d, hold_steps, back, ignore, pivot=None, descend=0.0
+) -> ArmPlan:
     X_WO = ctx.model.held_pose(side, ctx.q)
     shape = ctx.model.object(name).shape
     up = X_WO.rotation().col(2)
@@ -76,11 +81,17 @@ def _pour(ctx: SkillContext, side, name, angle, d, hold_steps, back, ignore, piv
     axis = np.cross(up, d)  # a positive turn about it tips the mouth toward d
     X_WT0 = ctx.model.tcp_pose(ctx.q, side)
 
+    lowest = np.pi / 2  # past it the lip is the lowest point of the container
+
     def turned(a: float) -> RigidTransform:
         R = RotationMatrix(_axis_angle(axis, a))
-        return RigidTransform(R @ X_WT0.rotation(), pivot + R @ (X_WT0.translation() - pivot))
+        low = 0.0
+        if descend > 0.0 and abs(angle) > lowest:
+            low = descend * float(np.clip((abs(a) - lowest) / (abs(angle) - lowest), 0.0, 1.0))
+        p = pivot - [0.0, 0.0, low]
+        return RigidTransform(R @ X_WT0.rotation(), p + R @ (X_WT0.translation() - pivot))
 
-    reach = float(np.linalg.norm(X_WT0.translation() - pivot)) * abs(angle)
+    reach = float(np.linalg.norm(X_WT0.translation() - pivot)) * abs(angle) + descend
     tilt = track(
         ctx, side, lambda s: turned(s * angle), reach, abs(angle), label="tilt", ignore=ignore
     )
