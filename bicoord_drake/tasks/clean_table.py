@@ -43,7 +43,7 @@ from bicoord_drake.planning.skills import (
     squeeze_release_steps,
     take_turn,
 )
-from bicoord_drake.stages import Stage
+from bicoord_drake.stages import Stage, WorldState
 from bicoord_drake.stages.predicates import (
     Predicate,
     all_of,
@@ -53,6 +53,7 @@ from bicoord_drake.stages.predicates import (
     lifted,
     settled,
     untouched,
+    world_hull_points,
 )
 from bicoord_drake.tasks.base import Task, WorldView, follow
 from bicoord_drake.tasks.registry import register_task
@@ -132,6 +133,10 @@ CLEAR_STEPS = 3
 WAIT_AT = (0.2, 0.05, 0.2)
 #: Control steps both arms hold still at the end: the objects must be seen at rest for 0.3 s.
 SETTLE_STEPS = 10
+#: An object whose lowest point lies less than this (m) above the table top, outside the bin,
+#: is on the table: it bounced out (under SAP a dropped object can land on the others and be
+#: thrown over the rim, or be caught by an opening finger) and is put back (``_put_back``).
+STRAY_HEIGHT = 0.01
 #: Fingertips stay this far above the table in a grasp (m; the planner keeps 5 mm).
 TIP_CLEARANCE = 0.006
 #: An object counts as lifted this far (m) above where it lay.
@@ -314,6 +319,16 @@ class CleanTable(Task):
         # ---- both hold still until the objects have come to rest (the last one can rock on or
         # slide off the others for a second), then SETTLE_STEPS more
         yield from hold_until_still(ctx, view, OBJECTS)
+        # ---- an object that bounced out of the bin onto the table is picked up where it lies
+        # and dropped in again, once each, by the arm on its side of the bin
+        strays = strays_on_table(view.state(view.embodiment.home_action()))
+        for name in strays:
+            try:
+                yield from run(_put_back(ctx, name))
+            except PlanningError:
+                continue  # the episode ends with it outside, as it would have
+        if strays:
+            yield from hold_until_still(ctx, view, OBJECTS)
         final = merge(ctx, hold(ctx, "left", SETTLE_STEPS), hold(ctx, "right", SETTLE_STEPS))
         yield from final.actions()
 
@@ -331,6 +346,28 @@ def in_bin_count(k: int) -> Predicate:
 
 
 # -------------------------------------------------------------------- expert helpers
+def strays_on_table(state: WorldState) -> list[str]:
+    """The objects lying on the table outside the bin: not in it, their lowest point less than
+    STRAY_HEIGHT above the table top (one on the rim or on the others is not)."""
+    return [
+        name
+        for name in OBJECTS
+        if not inside(name, "bin")(state)
+        and world_hull_points(state, name)[:, 2].min() < TABLE_TOP + STRAY_HEIGHT
+    ]
+
+
+def _put_back(ctx: SkillContext, name: str) -> Motion:
+    """The arm on `name`'s side of the bin picks it up where it lies and drops it into the
+    bin (:func:`_pick`, :func:`_drop`), the other arm going home meanwhile."""
+    x = ctx.model.object_pose(name).translation()[0]
+    side = "left" if x < BIN_XY[0] else "right"
+    with ctx.transaction():  # nothing planned stays tracked when it cannot be planned
+        plans = {side: _pick(ctx, side, name).then(_drop(ctx, side, len(OBJECTS) - 1))}
+        plans[other_side(side)] = retreat(ctx, other_side(side))
+        return merge(ctx, plans["left"], plans["right"])
+
+
 def _pick(ctx: SkillContext, side: str, name: str) -> ArmPlan:
     """Pick `name` with `side` from above, the fingertips TIP_CLEARANCE above the table (a
     card box is flatter than the pads are long); a compound object (car, mouse, bread) across

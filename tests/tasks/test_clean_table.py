@@ -115,6 +115,19 @@ def test_an_object_in_the_bin_counts_and_one_beside_or_on_the_rim_does_not(scene
     assert not one(state_with(scene, {O1: high}))
 
 
+def test_only_objects_lying_on_the_table_beside_the_bin_are_put_back(scene):
+    inside_bin = _in_bin(0, scene)
+    beside = _in_bin(1, scene)
+    beside[0] = ct.BIN_XY[0] - ct.BIN.size[0] / 2 - 0.05
+    beside[2] -= ct.BIN.floor_thickness  # resting on the table top
+    rim = _in_bin(2, scene)
+    rim[0] = ct.BIN_XY[0] - ct.BIN.size[0] / 2
+    rim[2] = TABLE_TOP + ct.BIN.size[2] + 0.01  # across the rim: outside, but not on the table
+    state = state_with(scene, {O1: inside_bin, O2: beside, O3: rim})
+    # O4 still where the scene put it, on the table
+    assert ct.strays_on_table(state) == [O2, O4]
+
+
 def test_an_object_held_inside_the_bin_does_not_count(scene):
     one = ct.in_bin_count(1)
     held = state_with(scene, {O1: _in_bin(0, scene)}, openings=(0.0, 1.0), contacts={O1: {"left"}})
