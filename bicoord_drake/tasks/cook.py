@@ -130,10 +130,6 @@ POUR_HEIGHT = 0.015
 #: Without it, rolls sliding out of the far-side tilt landed on or past the plate's far rim
 #: (seeds 20, 24 at -0.075; 0, 7, 12, 14 with the lip at -0.095).
 POUR_DESCEND = 0.04
-#: Serve: the tipped pan rises this far (m) above where it tipped before it tilts back
-#: (``pour(back_lift=)``): levelling, its underside swings down over the lip, where a roll
-#: that just slid out can lie (randomized seed 7: hit and thrown off the table).
-POUR_BACK_LIFT = 0.04
 POUR_LIP_OFFSET = -0.075
 POUR_HOLD = 20
 #: Serve: how many more times the skillet is tipped while a roll is measured in it after the
@@ -688,7 +684,6 @@ def _serve_toward(
                     direction=d,
                     hold_steps=POUR_HOLD,
                     descend=POUR_DESCEND,
-                    back_lift=POUR_BACK_LIFT,
                 )
             except PlanningError as err:
                 ctx.q = saved.copy()

@@ -210,29 +210,6 @@ def test_pour_descending_lowers_the_lip_only_past_90_degrees():
     assert np.allclose(pour.q[-1], q0[:6], atol=1e-3)  # and back up, level
 
 
-def test_pour_lifting_back_raises_the_container_before_it_levels():
-    ctx = sk.SkillContext(
-        PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75
-    )
-    sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=0.15)
-    X0 = ctx.model.held_pose("left", ctx.q)
-    q0 = ctx.q.copy()
-    d = np.array([-1.0, 0.0, 0.0])
-    lip = X0.translation() + 0.05 * X0.rotation().col(2) + 0.075 * d
-    angle, drop, up = np.radians(110), 0.03, 0.02
-    pour = sk.pour(ctx, "left", angle, direction=d, descend=drop, back_lift=up, hold_steps=3)
-    poses = [ctx.model.held_pose("left", np.r_[q6, q0[6:]]) for q6 in pour.q]
-    p_O = X0.inverse() @ lip
-    tilts = np.array([np.arccos(np.clip(X.rotation().col(2)[2], -1, 1)) for X in poses])
-    heights = np.array([(X @ p_O)[2] - lip[2] for X in poses])
-    deepest = int(np.argmin(heights))
-    assert heights[deepest] == pytest.approx(-drop, abs=1e-3)
-    # after the deepest point the lip only rises until the container has levelled
-    assert np.all(np.diff(heights[deepest:]) > -1e-4)
-    assert heights[-1] == pytest.approx(up, abs=1e-3) and tilts[-1] < 1e-3
-    assert np.allclose(poses[-1].translation(), X0.translation() + [0, 0, up], atol=1e-3)
-
-
 def test_rehearsal_puts_the_state_back_whether_the_plan_works_or_not():
     ctx = sk.SkillContext(
         PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75

@@ -24,7 +24,6 @@ def pour(
     ignore: Iterable[str] = (),
     pivot: Sequence[float] | None = None,
     descend: float = 0.0,
-    back_lift: float = 0.0,
 ) -> ArmPlan:
     """Tilt the held container by `angle` (rad) about the horizontal axis through its rim
     point in `direction`, hold `hold_steps`, and tilt back.
@@ -35,9 +34,7 @@ def pour(
     `pivot` (a world point, e.g. a spout's lip) replaces the rim point: the container turns
     about the horizontal axis through it, across `direction`. A `descend` (m) lowers the pivot
     that far while the tilt goes on past 90 deg, where the lip is the container's lowest point:
-    it pours close to what it pours onto. A `back_lift` (m) raises the tipped container
-    straight up that far above where it tipped (undoing `descend` too) before it tilts back:
-    its underside, swinging down as it levels, clears what it poured."""
+    it pours close to what it pours onto."""
     held = ctx.model.held.get(side)
     if held is None:
         raise PlanningError("gripper_empty", f"{side} holds no container to pour from")
@@ -57,9 +54,7 @@ def pour(
     for d in options:
         saved = ctx.q.copy()
         try:
-            return _pour(
-                ctx, side, held.name, angle, d, hold_steps, back, ignore, pivot, descend, back_lift
-            )
+            return _pour(ctx, side, held.name, angle, d, hold_steps, back, ignore, pivot, descend)
         except PlanningError as err:
             ctx.q = saved
             reasons.append(err.reason)
@@ -70,17 +65,7 @@ def pour(
 
 
 def _pour(
-    ctx: SkillContext,
-    side,
-    name,
-    angle,
-    d,
-    hold_steps,
-    back,
-    ignore,
-    pivot=None,
-    descend=0.0,
-    back_lift=0.0,
+    ctx: SkillContext, side, name, angle, d, hold_steps, back, ignore, pivot=None, descend=0.0
 ) -> ArmPlan:
     X_WO = ctx.model.held_pose(side, ctx.q)
     shape = ctx.model.object(name).shape
@@ -98,16 +83,12 @@ def _pour(
 
     lowest = np.pi / 2  # past it the lip is the lowest point of the container
 
-    def lowered(a: float) -> float:
-        if descend <= 0.0 or abs(angle) <= lowest:
-            return 0.0
-        return descend * float(np.clip((abs(a) - lowest) / (abs(angle) - lowest), 0.0, 1.0))
-
-    def turned(a: float, height: float | None = None) -> RigidTransform:
-        """The TCP with the container turned by `a` about the pivot, moved up by `height`
-        (default: down as `descend` has it at `a`)."""
+    def turned(a: float) -> RigidTransform:
         R = RotationMatrix(_axis_angle(axis, a))
-        p = pivot + [0.0, 0.0, -lowered(a) if height is None else height]
+        low = 0.0
+        if descend > 0.0 and abs(angle) > lowest:
+            low = descend * float(np.clip((abs(a) - lowest) / (abs(angle) - lowest), 0.0, 1.0))
+        p = pivot - [0.0, 0.0, low]
         return RigidTransform(R @ X_WT0.rotation(), p + R @ (X_WT0.translation() - pivot))
 
     reach = float(np.linalg.norm(X_WT0.translation() - pivot)) * abs(angle) + descend
@@ -116,26 +97,11 @@ def _pour(
     )
     plans = [tilt, hold(ctx, side, hold_steps, label="pour")]
     if back:
-        height = None
-        if back_lift > 0.0:
-            rise = lowered(angle) + back_lift
-            height = back_lift
-            plans.append(
-                track(
-                    ctx,
-                    side,
-                    lambda s: turned(angle, s * rise - lowered(angle)),
-                    rise,
-                    0.0,
-                    label="lift",
-                    ignore=ignore,
-                )
-            )
         plans.append(
             track(
                 ctx,
                 side,
-                lambda s: turned((1 - s) * angle, height),
+                lambda s: turned((1 - s) * angle),
                 reach,
                 abs(angle),
                 label="tilt back",
