@@ -139,13 +139,18 @@ def _bowl(x: float, y: float, shape: BowlShape = BOWL) -> SceneObject:
     )
 
 
-def test_pour_turns_the_bowl_about_its_rim_and_back():
+def _bowl_in_left_hand(lift: float):
+    """A planning context whose left hand holds the bowl by its rim, lifted `lift` m; the
+    bowl's pose and the joint positions then."""
     ctx = sk.SkillContext(
         PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75
     )
-    sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=0.12)
-    X0 = ctx.model.held_pose("left", ctx.q)
-    q0 = ctx.q.copy()
+    sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=lift)
+    return ctx, ctx.model.held_pose("left", ctx.q), ctx.q.copy()
+
+
+def test_pour_turns_the_bowl_about_its_rim_and_back():
+    ctx, X0, q0 = _bowl_in_left_hand(lift=0.12)
     angle = np.radians(60)
     pour = sk.pour(ctx, "left", angle, hold_steps=5)
     # the rim point on the pouring side stays put; the tilt reaches the angle; back level
@@ -171,12 +176,7 @@ def test_pour_turns_the_bowl_about_its_rim_and_back():
 
 
 def test_pour_about_a_given_pivot_keeps_that_point_still():
-    ctx = sk.SkillContext(
-        PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75
-    )
-    sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=0.12)
-    X0 = ctx.model.held_pose("left", ctx.q)
-    q0 = ctx.q.copy()
+    ctx, X0, q0 = _bowl_in_left_hand(lift=0.12)
     d = np.array([1.0, 0.0, 0.0])
     pivot = X0.translation() + 0.06 * X0.rotation().col(2) + 0.03 * d  # inside the rim
     pour = sk.pour(ctx, "left", np.radians(45), direction=d, pivot=pivot, hold_steps=3)
@@ -188,12 +188,7 @@ def test_pour_about_a_given_pivot_keeps_that_point_still():
 
 
 def test_pour_descending_lowers_the_lip_only_past_90_degrees():
-    ctx = sk.SkillContext(
-        PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75
-    )
-    sk.pick(ctx, "left", "bowl", kinds=["rim"], lift=0.15)
-    X0 = ctx.model.held_pose("left", ctx.q)
-    q0 = ctx.q.copy()
+    ctx, X0, q0 = _bowl_in_left_hand(lift=0.15)
     d = np.array([-1.0, 0.0, 0.0])
     lip = X0.translation() + 0.05 * X0.rotation().col(2) + 0.075 * d
     angle, drop = np.radians(110), 0.03
