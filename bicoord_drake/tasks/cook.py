@@ -623,14 +623,13 @@ def _serve(ctx: SkillContext, side: str, plate: np.ndarray) -> ArmPlan:
     plan win."""
     reasons: list[str] = []
     searches = [
-        (FAR_DIRECTIONS, offset, -np.inf, FAR_GRIP_ALIGNMENT, FAR_POUR_ANGLES)
-        for offset in FAR_LIP_OFFSETS
+        (FAR_DIRECTIONS, offset, FAR_GRIP_ALIGNMENT, FAR_POUR_ANGLES) for offset in FAR_LIP_OFFSETS
     ]
-    searches.append((POUR_DIRECTIONS, POUR_LIP_OFFSET, -np.inf, POUR_GRIP_ALIGNMENT, POUR_ANGLES))
-    for directions, offset, low, high, angles in searches:
+    searches.append((POUR_DIRECTIONS, POUR_LIP_OFFSET, POUR_GRIP_ALIGNMENT, POUR_ANGLES))
+    for directions, offset, alignment, angles in searches:
         for d in directions:
             plan = _serve_toward(
-                ctx, side, plate, np.asarray(d), offset, (low, high), angles, reasons
+                ctx, side, plate, np.asarray(d), offset, alignment, angles, reasons
             )
             if plan is not None:
                 return plan
@@ -644,12 +643,12 @@ def _serve_toward(
     plate: np.ndarray,
     d: np.ndarray,
     lip_offset: float,
-    alignment: tuple[float, float],
+    alignment: float,
     angles: tuple[float, ...],
     reasons: list[str],
 ) -> ArmPlan | None:
     """The serve toward `d` with the lip `lip_offset` (m) past the plate's centre, over the
-    skillet's turns whose grip cosine lies in `alignment` (low, high], most far-side first, and
+    skillet's turns whose grip cosine is at most `alignment`, most far-side first, and
     `angles`; None (reasons appended) when none plans."""
     held = ctx.model.held[side]
     gripper = ctx.model.embodiment.arm.gripper
@@ -666,8 +665,7 @@ def _serve_toward(
         grip = (X_WT.translation() - p_B)[:2]
         grip /= max(float(np.linalg.norm(grip)), 1e-9)
         options.append((float(grip @ d[:2]), X_WT))
-    low, high = alignment
-    usable = [o for o in options if low < o[0] <= high]
+    usable = [o for o in options if o[0] <= alignment]
     for _, X_WT in sorted(usable, key=lambda o: o[0]):
         try:
             q6 = solve_tcp(ctx, side, TcpTarget(X_WT))
