@@ -179,3 +179,46 @@ def test_a_roll_pinned_in_the_tipped_pan_is_found_for_another_tip(cook):
     beside = level @ RigidTransform([cook.SKILLET.radius + 0.01, 0.0, 0.03])
     for roll in (on_plate, beside):
         assert not cook._lies_in_pan({"skillet": level, "roll_0": roll}, "roll_0")
+
+
+class _Measured:
+    """A stand-in for the expert's view: only the measured object poses."""
+
+    def __init__(self, poses: dict) -> None:
+        self.poses = poses
+
+    def object_transforms(self) -> dict:
+        return dict(self.poses)
+
+
+def test_a_first_roll_short_of_the_axis_is_slid_to_the_far_wall(cook, task):
+    """Before the second throw (which flies in over it from the thrower's side), a first roll
+    lying on the pan's floor short of the axis is slid away by tipping the pan toward +x and
+    back; one already far, one resting above the floor (on the catcher's hand) or one outside
+    the pan is left alone."""
+    from pydrake.all import RigidTransform
+
+    from bicoord_drake.planning.model import PlanningModel
+    from bicoord_drake.planning.skills import SkillContext, pick
+
+    ctx = SkillContext(PlanningModel(task.sample_scene(0)))
+    pick(ctx, "right", "skillet", kinds=["rim"], lift=0.10)
+    X_WP = ctx.model.held_pose("right", ctx.q)
+    on_floor = cook.SKILLET.wall + cook.ROLL_RADIUS
+
+    def view(dx: float, z: float = on_floor, dy: float = 0.0) -> _Measured:
+        roll = RigidTransform(X_WP.translation() + [dx, dy, z])
+        return _Measured({"skillet": X_WP, "roll_0": roll})
+
+    start = ctx.q.copy()
+    slide = cook._slide_to_far_wall(ctx, view(-0.03), "roll_0")
+    assert slide is not None and "slide" in slide.label
+    n = len(start) // 2  # the plan is the right arm's joints; the left's come first in ctx.q
+    tilts = [
+        ctx.model.held_pose("right", np.r_[start[:n], q]).rotation().col(2)[0] for q in slide.q
+    ]
+    assert max(tilts) > np.sin(cook.SLIDE_TILT) - 0.02  # the mouth turned toward +x
+    np.testing.assert_allclose(slide.q[-1], start[n:], atol=1e-6)  # and level again
+    for measured in (view(0.06), view(-0.03, z=0.10), view(-0.03, dy=0.15)):
+        assert cook._slide_to_far_wall(ctx, measured, "roll_0") is None
+    np.testing.assert_allclose(ctx.q, start, atol=1e-6)
