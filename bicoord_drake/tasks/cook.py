@@ -93,13 +93,6 @@ STEEP_RELEASES = (
     ((-0.10, -0.05, 0.25), 1.1, np.radians(55)),
     ((-0.08, -0.05, 0.25), 1.1, np.radians(60)),
 )
-#: Before the second throw: a first roll lying short of SLIDE_BELOW (m past the pan's axis
-#: along the flight) would be in the way of the second, which flies in over it from the thrower's
-#: side and came down on it (seeds 15, 17: it bounced back to 0.8 and 3.2 cm short of the axis,
-#: the second landed on it, 7 cm up, where the re-throw cannot grasp it). The catcher then tips
-#: the pan SLIDE_TILT (rad; the roll slides on the non-stick pan from ~0.42) toward the far
-#: wall for SLIDE_HOLD control steps and back, and the second roll lands on the thrower's side.
-SLIDE_BELOW, SLIDE_TILT, SLIDE_HOLD = 0.03, 0.6, 8
 #: Shake: amplitude (m) along world x and number of full back-and-forth cycles.
 SHAKE_AMPLITUDE, SHAKE_CYCLES = 0.05, 2
 #: Serve: the gripper may sit at most this far toward the lip (cosine between the pan centre ->
@@ -166,11 +159,10 @@ class Cook(Task):
     throws it (released on the control grid with a planned velocity, ruckig with a non-zero
     target velocity; long side across the flight, least spin) while the right arm carries the
     skillet, levelled, under the predicted landing point, synchronized with the throw; then the
-    second roll, aimed beside the first as measured in the pan (a first roll lying short of
-    the pan's axis, in the second's way, is slid to the far wall by tipping the pan). The left
-    arm goes home, the right arm shakes the skillet +-5 cm twice and tips it about its rim over
-    the plate (held from the pan's far side where the arm reaches it, the lip lowered toward
-    the plate as it tips past 90 degrees).
+    second roll, aimed beside the first as measured in the pan. The left arm goes home, the
+    right arm shakes the skillet +-5 cm twice and tips it about its rim over the plate (held
+    from the pan's far side where the arm reaches it, the lip lowered toward the plate as it
+    tips past 90 degrees).
 
     The skillet is a rim-held bowl, not a pan with a handle bar: ``skills.toss`` catches with a
     ``BowlShape`` held by its rim, and a straight 12 mm wall is what holds level in the grip
@@ -368,12 +360,7 @@ class Cook(Task):
         in_pan.append(ROLLS[0])
         _park(ctx, in_pan)
         yield from retoss(ROLLS[0], [ROLL_AIM, 0.5 * ROLL_AIM, 0.0])
-        # The first roll slides to the far wall while the left picks the second; if it is not
-        # lying in the pan yet (seed 15: it rested on the catcher's hand for 25 steps), after.
-        slide = _slide_to_far_wall(ctx, view, ROLLS[0])
-        yield from run(merge(ctx, pick(ctx, "left", ROLLS[1], kinds=["top"]), slide))
-        if slide is None and (slide := _slide_to_far_wall(ctx, view, ROLLS[0])) is not None:
-            yield from run(merge(ctx, None, slide))
+        yield from run(merge(ctx, pick(ctx, "left", ROLLS[1], kinds=["top"]), None))
         yield from run(_toss(ctx, _aim_beside(view, ROLLS[0])))
         in_pan.append(ROLLS[1])
         _park(ctx, in_pan)
@@ -529,27 +516,6 @@ def _aim_beside(view: WorldView, roll: str) -> list[float]:
             "pan_full", f"no room beside {roll} ({dx:+.3f} m from the pan's axis along the flight)"
         )
     return [side * ROLL_REACH, (side * ROLL_REACH + nearest) / 2, nearest]
-
-
-def _slide_to_far_wall(ctx: SkillContext, view: WorldView, roll: str) -> ArmPlan | None:
-    """Right tips the skillet SLIDE_TILT toward +x (the flight's direction) about its far rim,
-    holds and levels it, when `roll` lies on its floor short of SLIDE_BELOW from its axis: the
-    roll slides to the far wall, out of the next throw's way. None when it lies far enough
-    already, is not on the pan's floor (in flight, or resting on the catcher's hand), or the
-    tilt cannot be planned (the throw then goes as before)."""
-    poses = view.object_transforms()
-    X_WP = poses["skillet"]
-    p = X_WP.inverse() @ poses[roll].translation()
-    on_floor = np.hypot(p[0], p[1]) < SKILLET.radius and 0.0 < p[2] < SKILLET.height
-    if not on_floor or poses[roll].translation()[0] - X_WP.translation()[0] >= SLIDE_BELOW:
-        return None
-    try:
-        with ctx.transaction():
-            plan = pour(ctx, "right", SLIDE_TILT, direction=(1.0, 0.0, 0.0), hold_steps=SLIDE_HOLD)
-    except PlanningError:
-        return None
-    plan.label = f"slide {roll} to the far wall"
-    return plan
 
 
 def _pick_making_room(ctx: SkillContext, roll: str) -> Motion:
