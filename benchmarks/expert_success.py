@@ -223,9 +223,12 @@ def write_atomic(path: Path, text: str) -> None:
     os.replace(tmp, path)
 
 
-def replay_check(task: str, data: Path, workers: int) -> tuple[int, int, list[tuple[int, str]]]:
-    """Replay every episode of `task` under `data` (no rendering): (replays that completed
-    every stage, replays, [(seed, why it failed: its error or the stages not reproduced)])."""
+def replay_check(
+    task: str, data: Path, workers: int, embodiment: str | None = None
+) -> tuple[int, int, list[tuple[int, str]]]:
+    """Replay every episode of `task` under `data` (no rendering) on `embodiment` (the robot
+    that recorded them; None: the default robot): (replays that completed every stage,
+    replays, [(seed, why it failed: its error or the stages not reproduced)])."""
     from bicoord_drake.runner.evaluate import (
         EvaluateConfig,
         evaluate,
@@ -242,6 +245,7 @@ def replay_check(task: str, data: Path, workers: int) -> tuple[int, int, list[tu
         render=False,
         workers=workers,
         out=str(data / "replay_report"),
+        **({} if embodiment is None else {"embodiment": embodiment}),
     )
     report = evaluate(config)
     failures = [
@@ -286,7 +290,11 @@ def run_task(
     summary = generate(config)
     wall = time.perf_counter() - t0
     t1 = time.perf_counter()
-    replayed = replay_check(task, work_dir / task, workers) if replay and summary.kept else None
+    replayed = (
+        replay_check(task, work_dir / task, workers, embodiment)
+        if replay and summary.kept
+        else None
+    )
     replay_seconds = time.perf_counter() - t1
     per_episode = summary.seconds_per_episode
     end_commit, end_dirty = git_state()  # the tree may change while the seeds run

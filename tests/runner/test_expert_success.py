@@ -185,8 +185,8 @@ def test_replay_option_replays_the_kept_episodes_of_the_run(es, tmp_path, monkey
     monkeypatch.setattr(es, "git_state", lambda root=es.ROOT: ("abc", False))
     replayed = {}
 
-    def fake_replay(task, data, workers):
-        replayed.update(task=task, data=data, workers=workers)
+    def fake_replay(task, data, workers, embodiment=None):
+        replayed.update(task=task, data=data, workers=workers, embodiment=embodiment)
         return 1, 2, [(5, "1")]
 
     monkeypatch.setattr(es, "replay_check", fake_replay)
@@ -198,6 +198,9 @@ def test_replay_option_replays_the_kept_episodes_of_the_run(es, tmp_path, monkey
     assert replayed["task"] == "jigsaw" and replayed["workers"] == 2
     assert replayed["data"].name == "jigsaw"
     assert "**1/2** reproduce every stage" in out.read_text()
+    # the episodes of another robot are replayed on that robot (the environment refuses others)
+    assert es.main([*argv, "--embodiment", "franka_pair"]) == 0
+    assert replayed["embodiment"] == "franka_pair"
 
 
 def test_data_option_keeps_the_episodes_and_marks_a_resumed_run(es, tmp_path, monkeypatch):
