@@ -102,7 +102,7 @@ def table(rows: list[dict]) -> str:
     head += "".join(f" {p} |" for p in phases) + " load |"
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
-        split = "".join(f" {r['split'].get(p, 0.0):.0f} |" for p in phases)
+        split = "".join(f" {r['split'].get(p, 0.0):.1f} |" for p in phases)
         lines.append(
             f"| `{r['commit']}` | {r['task']} | {'yes' if r['render'] else 'no'} | "
             f"{r['workers']} | {r['kept']}/{r['tried']} | {r['simulated']:.1f} | "
@@ -117,23 +117,28 @@ def physics_rate(row: dict) -> float | None:
     return row["simulated"] / physics if physics > 0 and row["simulated"] > 0 else None
 
 
-def ratio_table(rows: list[dict], before: str | None) -> str:
-    """After/before ratios per (task, render, workers): whole run and physics phase."""
-    commits = list(dict.fromkeys(r["commit"] for r in rows))
-    if len(commits) != 2:
+def ratio_table(rows: list[dict]) -> str:
+    """After/before ratios per (task, render, workers): whole run and physics phase.
+
+    Rows with ``before`` true come from the ``--before`` checkout; the others from this one,
+    whatever commit it was at when each was measured (a commit landing during a long run
+    moves this checkout's HEAD, not what it measures)."""
+    olds = {(r["task"], r["render"], r["workers"]): r for r in rows if r.get("before")}
+    news = [r for r in rows if not r.get("before")]
+    if not olds or not news:
         return ""
-    old, new = (before, next(c for c in commits if c != before)) if before else commits
-    by_key = {(r["commit"], r["task"], r["render"], r["workers"]): r for r in rows}
+    old = ", ".join(f"`{c}`" for c in dict.fromkeys(r["commit"] for r in olds.values()))
+    new = ", ".join(f"`{c}`" for c in dict.fromkeys(r["commit"] for r in news))
     lines = [
-        f"After (`{new}`) / before (`{old}`):",
+        f"After ({new}) / before ({old}):",
         "",
         "| task | render | workers | run rate ratio | physics rate ratio |",
         "|---|---|---|---|---|",
     ]
     run_ratios, physics_ratios = [], []
-    for (commit, task, render, workers), r_new in by_key.items():
-        r_old = by_key.get((old, task, render, workers))
-        if commit != new or r_old is None or r_old["rate"] <= 0:
+    for r_new in news:
+        r_old = olds.get((r_new["task"], r_new["render"], r_new["workers"]))
+        if r_old is None or r_old["rate"] <= 0:
             continue
         run = r_new["rate"] / r_old["rate"]
         p_new, p_old = physics_rate(r_new), physics_rate(r_old)
@@ -142,8 +147,8 @@ def ratio_table(rows: list[dict], before: str | None) -> str:
         if phys:
             physics_ratios.append(phys)
         lines.append(
-            f"| {task} | {'yes' if render else 'no'} | {workers} | {run:.2f}x | "
-            + (f"{phys:.2f}x |" if phys else "- |")
+            f"| {r_new['task']} | {'yes' if r_new['render'] else 'no'} | {r_new['workers']} | "
+            f"{run:.2f}x | " + (f"{phys:.2f}x |" if phys else "- |")
         )
     if run_ratios:
         med_p = f"{statistics.median(physics_ratios):.2f}x" if physics_ratios else "-"
@@ -212,6 +217,7 @@ def main() -> None:
                             "render": render,
                             "workers": workers,
                             "commit": revision(tree),
+                            "before": bool(args.before) and tree == trees[0],
                             "rate": statistics.median(r["rate"] for r in results),
                         }
                         rows.append(row)
@@ -231,7 +237,7 @@ def main() -> None:
         ]
     )
     if args.before:
-        text += "\n" + ratio_table(rows, revision(trees[0]) if trees[0].exists() else None) + "\n"
+        text += "\n" + ratio_table(rows) + "\n"
     if args.out:
         args.out.write_text(text)
     print(text)
