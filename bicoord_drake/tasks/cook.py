@@ -27,6 +27,7 @@ from bicoord_drake.planning.skills import (
     move,
     move_tcp,
     pick,
+    place,
     pour,
     retreat,
     solve_tcp,
@@ -141,6 +142,19 @@ SETTLE_STEPS = 10
 #: How far (m) the catcher carries the skillet away, in the order tried, when the left cannot
 #: pick a roll that bounced out beside the catcher's hand.
 ROOM_SHIFTS = (0.06, 0.10)
+#: Where (bearings from the plate's centre, rad) the catcher may set the skillet down, clear of
+#: the plate, to let the thrower pick a roll lying on the other one (the nearest that plans).
+SET_DOWN_BEARINGS = tuple(np.radians(np.arange(-180.0, 180.0, 30.0)))
+#: ... at this gap (m) from the plate's rim.
+SET_DOWN_GAP = 0.03
+#: Heights (m) above the table the skillet is let go at, in the order tried: a pan that rode
+#: up in the rim grasp (fingertips below its base) is dropped the last 2 cm.
+SET_DOWN_DROPS = (0.0, 0.02)
+#: How far (m) right's hand rises after letting the skillet go: clear of left's fingers.
+SET_DOWN_BACK = 0.12
+#: Where (table x, y, m) left holds a roll it took from the set-down skillet while right lifts
+#: the skillet again: above where rolls lie at the start (see ``_carry_aside``).
+ASIDE_XY = (-0.22, -0.05)
 #: Where rolls that lie in the pan are kept in the planning model (see ``_park``).
 PARKED = np.array([0.0, 2.0, -2.0])
 
@@ -159,7 +173,10 @@ class Cook(Task):
     throws it (released on the control grid with a planned velocity, ruckig with a non-zero
     target velocity; long side across the flight, least spin) while the right arm carries the
     skillet, levelled, under the predicted landing point, synchronized with the throw; then the
-    second roll, aimed beside the first as measured in the pan. The left arm goes home, the
+    second roll, aimed beside the first as measured in the pan (a roll that came to lie on the
+    other is picked and thrown again; if the catcher's hand is in the way, the catcher first
+    sets the skillet down on the table, lets go and lifts it again once the thrower has the
+    roll). The left arm goes home, the
     right arm shakes the skillet +-5 cm twice and tips it about its rim over the plate (held
     from the pan's far side where the arm reaches it, the lip lowered toward the plate as it
     tips past 90 degrees).
@@ -327,29 +344,70 @@ class Cook(Task):
             in_pan.remove(roll)
             ctx.sync(ctx.q, object_poses=view.object_transforms())
             _park(ctx, in_pan)
+            steep = True
             try:
                 again = _pick_making_room(ctx, roll)
             except PlanningError:
-                # Seeds 19, 21: a roll lying on the other one, beside the catcher's gripper,
-                # cannot be grasped (ik_collision). It stays where it is, planned as in the pan.
+                # A roll lying on the other one, beside the catcher's gripper, cannot be
+                # grasped with the skillet in hand (ik_collision; seeds 15, 17, 19, 21).
                 in_pan.append(roll)
                 _park(ctx, in_pan)
-                return
-            z0 = view.object_pose(roll)[2]
-            yield from run(again)
-            if view.object_pose(roll)[2] < z0 + 0.03:  # the grasp did not take it along
-                return
+                if not _lies_in_pan(view.object_transforms(), roll):
+                    return
+                if not (yield from set_down_and_pick(roll)):
+                    return
+                steep = False
+            else:
+                z0 = view.object_pose(roll)[2]
+                yield from run(again)
+                if view.object_pose(roll)[2] < z0 + 0.03:  # the grasp did not take it along
+                    return
             # The miss came from flying into the catcher's gripper on the far rim (seeds 19,
-            # 21): this time the landing nearest the pan's axis and the steep entry first.
+            # 21): this time the landing nearest the pan's axis and the steep entry first -
+            # but not after a set-down (the roll is then thrown from aside, as at the start).
             try:
                 if aims is None and in_pan:
                     aims = _aim_beside(view, in_pan[0])
-                toss_again = _toss(ctx, (aims or [ROLL_AIM, 0.0])[::-1], steep_first=True)
+                toss_again = _toss(ctx, (aims or [ROLL_AIM, 0.0])[::-1], steep_first=steep)
             except PlanningError:
                 return
             yield from run(toss_again)
             in_pan.append(roll)
             _park(ctx, in_pan)
+
+        def set_down_and_pick(roll: str) -> Iterator[np.ndarray]:
+            """`roll` lies on the other roll in the pan, too near the catcher's hand to be
+            picked: right sets the skillet down on the table (``_set_down``) and lets go,
+            left picks `roll` from it (right going home if it is in the way), right lifts the
+            skillet by its rim again while left carries the roll aside. Returns whether left
+            then holds `roll` (a roll that slid off the other as the pan went down is left in
+            it: in_pan, nothing to throw)."""
+            in_pan.remove(roll)
+            lying = list(in_pan)
+            try:
+                down = _set_down(ctx, scene, view.object_transforms(), roll, lying)
+            except PlanningError:
+                in_pan.append(roll)
+                return False
+            yield from run(down)
+            in_pan.clear()  # the pan stands still: both rolls are obstacles where they lie
+            ctx.sync(ctx.q, object_poses=view.object_transforms())
+            taken = False
+            if not _in_pan(roll)(view.state(home)):
+                try:
+                    take = _pick_from_set_down(ctx, roll)
+                except PlanningError:
+                    take = None
+                if take is not None:
+                    z0 = view.object_pose(roll)[2]
+                    yield from run(take)
+                    taken = view.object_pose(roll)[2] >= z0 + 0.03
+            in_pan[:] = lying if taken else [*lying, roll]
+            _park(ctx, in_pan)
+            # The pan on the table: the rest of the expert needs it in hand again.
+            poses = view.object_transforms()
+            yield from run(_take_skillet_again(ctx, {n: poses[n] for n in in_pan}))
+            return taken
 
         # ---- stage 1: left picks the far roll, right lifts the skillet by its rim
         left = pick(ctx, "left", ROLLS[0], kinds=["top"])
@@ -559,6 +617,89 @@ def _serve_again(ctx: SkillContext, plate: np.ndarray) -> Motion:
     with ctx.transaction():
         again = _lift_clear(ctx, "right", SERVE_LIFT).then(_serve(ctx, "right", plate))
     return combine(hold(ctx, "left", 0), again)
+
+
+def _set_down(
+    ctx: SkillContext,
+    scene: Scene,
+    poses: dict[str, RigidTransform],
+    roll: str,
+    lying: list[str],
+) -> Motion:
+    """Right carries the held skillet, level, onto the table and lets go (``skills.place``:
+    lower, open, back off along the approach) where left can then pick `roll` from it and
+    right take the skillet again, as rehearsed with the rolls carried along (`poses`: measured;
+    `lying`: the other rolls in the pan). Tried: straight down if that clears the plate, then
+    SET_DOWN_BEARINGS around the plate, nearest first."""
+    X_WP = ctx.model.held_pose("right", ctx.q)
+    R = X_WP.rotation().matrix()
+    yaw = float(np.arctan2(R[1, 0], R[0, 0]))
+    here = X_WP.translation()[:2]
+    plate = np.array(scene.object("plate").pose.xyz[:2])
+    clear = PLATE.radius + SKILLET.radius + SET_DOWN_GAP
+    ring = [plate + clear * np.array([np.cos(a), np.sin(a)]) for a in SET_DOWN_BEARINGS]
+    spots = [here] if np.linalg.norm(here - plate) >= clear else []
+    spots += sorted(ring, key=lambda p: float(np.linalg.norm(p - here)))
+    X_PW = poses["skillet"].inverse()
+    reasons = []
+    for (x, y), drop in ((p, h) for p in spots for h in SET_DOWN_DROPS):
+        X_goal = RigidTransform(RotationMatrix.MakeZRotation(yaw), [x, y, TABLE_TOP + drop])
+        try:
+            with ctx.transaction():
+                away = retreat(ctx, "left")  # from where it threw: out of the way
+                plan = merge(
+                    ctx, away, place(ctx, "right", X_goal, yaws=[0.0], retreat=SET_DOWN_BACK)
+                )
+                with ctx.rehearsal():  # the rolls go along with the pan
+                    X_WP_new = ctx.model.object_pose("skillet")
+                    for name in (roll, *lying):
+                        ctx.model.set_object_pose(name, X_WP_new @ X_PW @ poses[name])
+                    _pick_from_set_down(ctx, roll)
+                    _take_skillet_again(ctx, {n: ctx.model.object_pose(n) for n in lying})
+                return plan
+        except PlanningError as err:
+            reasons.append(err.reason)
+    raise PlanningError("set_down_failed", f"no place to set the skillet down ({reasons})")
+
+
+def _pick_from_set_down(ctx: SkillContext, roll: str) -> Motion:
+    """Left picks `roll` from the skillet on the table; if right's hand, backed off above the
+    rim, is in the way, right goes home meanwhile."""
+    reasons = []
+    for clear_first in (False, True):
+        try:
+            with ctx.transaction():
+                away = retreat(ctx, "right") if clear_first else None
+                return merge(ctx, pick(ctx, "left", roll, kinds=["top"]), away)
+        except PlanningError as err:
+            reasons.append(err.reason)
+    raise PlanningError("pick_failed", f"left cannot pick {roll!r} from the pan ({reasons})")
+
+
+def _carry_aside(ctx: SkillContext) -> ArmPlan:
+    """Left carries its roll, the hand turned as it picked it, to where rolls are picked at
+    the start (ASIDE_XY, the same height): a throw from there winds up as the first throws do
+    (from home the wrist turned so that the opened fingers kept the roll on one of them)."""
+    X = ctx.model.tcp_pose(ctx.q, "left")
+    goal = RigidTransform(X.rotation(), [*ASIDE_XY, X.translation()[2]])
+    try:
+        with ctx.transaction():
+            return move_tcp(ctx, "left", goal, label="carry aside")
+    except PlanningError:
+        return retreat(ctx, "left")
+
+
+def _take_skillet_again(ctx: SkillContext, lying: dict[str, RigidTransform]) -> Motion:
+    """Right lifts the skillet off the table by its rim again; left, if it holds a roll,
+    carries it aside meanwhile (``_carry_aside``), out of the way. The grasp is planned with
+    the rolls in the pan where they lie (`lying`: X_WO by name; the fingers must miss them),
+    the lift with them parked (``_park``: they go along)."""
+    for name, X_WO in lying.items():
+        ctx.model.set_object_pose(name, X_WO)
+    away = _carry_aside(ctx) if "left" in ctx.model.held else None
+    grasp = pick(ctx, "right", "skillet", kinds=["rim"], lift=0.0)
+    _park(ctx, list(lying))
+    return merge(ctx, away, grasp.then(_lift_clear(ctx, "right", 0.10)))
 
 
 def _lift_clear(ctx: SkillContext, side: str, height: float) -> ArmPlan:
