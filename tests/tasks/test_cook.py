@@ -143,6 +143,34 @@ def test_expert_throws_each_roll_in_free_flight(cook, task, tmp_path):
 
 
 @pytest.mark.slow
+def test_a_stacked_roll_is_thrown_again_after_the_pan_is_set_down(cook, task, tmp_path):
+    """Seed 17: the second roll lands on the first and the thrower's fingers cannot reach it
+    past the catcher's hand; the catcher sets the skillet down, lets go, lifts it again, and the
+    roll is thrown again (the episode failed at the throw stage before)."""
+    from bicoord_drake.data.episode import EpisodeLayout, EpisodeMeta, read_episode, save_episode
+    from bicoord_drake.models.scene import TABLE_TOP
+
+    result = run_expert(EpisodeSetup(task=task, seed=17, station=StationConfig(render=False)))
+    assert result.success, result.reason
+    layout = EpisodeLayout(tmp_path, "cook", "default")
+    meta = EpisodeMeta(
+        task="cook",
+        seed=17,
+        instruction=result.instruction,
+        embodiment="aloha_viperx",
+        success=True,
+        object_count=4,
+        scene=result.scene,
+    )
+    save_episode(layout, 0, result.recorder, result.rows, meta, video=False)
+    z = read_episode(layout.episode(0), images=False).objects["skillet"][:, 2] - TABLE_TOP
+    lifted = np.flatnonzero(z > 0.05)
+    down = np.flatnonzero(z[lifted[0] :] < 0.025) + lifted[0]
+    assert len(down), "the skillet never went back onto the table"
+    assert np.any(z[down[-1] :] > 0.05), "the skillet was not lifted again"
+
+
+@pytest.mark.slow
 def test_expert_succeeds_on_at_least_90_percent_of_30_seeds(task):
     successes = sum(
         run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False))).success
