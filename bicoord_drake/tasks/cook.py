@@ -699,12 +699,17 @@ def _take_skillet_again(ctx: SkillContext, lying: dict[str, RigidTransform]) -> 
     away = _carry_aside(ctx) if "left" in ctx.model.held else None
     grasp = pick(ctx, "right", "skillet", kinds=["rim"], lift=0.0)
     _park(ctx, list(lying))
-    return merge(ctx, away, grasp.then(_lift_clear(ctx, "right", 0.10)))
+    # Off the table: the skillet resting on it reads a few mm deep at the start (seed 9
+    # randomized); straight up, it cannot press into anything.
+    return merge(ctx, away, grasp.then(_lift_clear(ctx, "right", 0.10, ignore=("skillet",))))
 
 
-def _lift_clear(ctx: SkillContext, side: str, height: float) -> ArmPlan:
+def _lift_clear(
+    ctx: SkillContext, side: str, height: float, ignore: tuple[str, ...] = ()
+) -> ArmPlan:
     """Raise the TCP straight up by `height` (m), keeping its orientation, from a start that
-    may touch what the held skillet rests on (a track: never pressing deeper)."""
+    may touch what the held skillet rests on (a track: never pressing deeper; objects in
+    `ignore` are left out of its checks)."""
     X = ctx.model.tcp_pose(ctx.q, side)
     p, R = X.translation(), X.rotation()
     return track(
@@ -714,6 +719,7 @@ def _lift_clear(ctx: SkillContext, side: str, height: float) -> ArmPlan:
         height,
         0.0,
         label="lift clear",
+        ignore=ignore,
     )
 
 
