@@ -352,7 +352,8 @@ class Cook(Task):
                 # grasped with the skillet in hand (ik_collision; seeds 15, 17, 19, 21).
                 in_pan.append(roll)
                 _park(ctx, in_pan)
-                if not _lies_in_pan(view.object_transforms(), roll):
+                on_other = any(r != roll for r in in_pan)  # not the first roll (seed 9 r.)
+                if not on_other or not _lies_in_pan(view.object_transforms(), roll):
                     return
                 if not (yield from set_down_and_pick(roll)):
                     return
