@@ -119,16 +119,16 @@ def test_rolls_on_the_table_beside_the_skillet_are_not_in_it(task):
 
 
 # -------------------------------------------------------------------- physics (slow)
-@pytest.mark.slow
-def test_expert_throws_each_roll_in_free_flight(cook, task, tmp_path):
+def _kept_episode(task, seed: int, tmp_path):
+    """The expert's episode of `seed` in physics (no cameras), kept, saved and read back."""
     from bicoord_drake.data.episode import EpisodeLayout, EpisodeMeta, read_episode, save_episode
 
-    result = run_expert(EpisodeSetup(task=task, seed=0, station=StationConfig(render=False)))
+    result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
     assert result.success, result.reason
     layout = EpisodeLayout(tmp_path, "cook", "default")
     meta = EpisodeMeta(
         task="cook",
-        seed=0,
+        seed=seed,
         instruction=result.instruction,
         embodiment="aloha_viperx",
         success=True,
@@ -136,34 +136,25 @@ def test_expert_throws_each_roll_in_free_flight(cook, task, tmp_path):
         scene=result.scene,
     )
     save_episode(layout, 0, result.recorder, result.rows, meta, video=False)
-    episode = read_episode(layout.episode(0), images=False)
+    return read_episode(layout.episode(0), images=False)
+
+
+@pytest.mark.slow
+def test_expert_throws_each_roll_in_free_flight(cook, task, tmp_path):
+    episode = _kept_episode(task, 0, tmp_path)
     tcps = np.stack([episode.left_endpose[:, :3], episode.right_endpose[:, :3]], axis=1)
     for roll in cook.ROLLS:  # 1 to 4 frames at 15 Hz in the 28 episodes of the benchmark
         assert len(cook.free_flight_frames(episode.objects, tcps, roll)) >= 1, roll
 
 
 @pytest.mark.slow
-def test_a_stacked_roll_is_thrown_again_after_the_pan_is_set_down(cook, task, tmp_path):
+def test_a_stacked_roll_is_thrown_again_after_the_pan_is_set_down(task, tmp_path):
     """Seed 17: the second roll lands on the first and the thrower's fingers cannot reach it
     past the catcher's hand; the catcher sets the skillet down, lets go, lifts it again, and the
     roll is thrown again (the episode failed at the throw stage before)."""
-    from bicoord_drake.data.episode import EpisodeLayout, EpisodeMeta, read_episode, save_episode
     from bicoord_drake.models.scene import TABLE_TOP
 
-    result = run_expert(EpisodeSetup(task=task, seed=17, station=StationConfig(render=False)))
-    assert result.success, result.reason
-    layout = EpisodeLayout(tmp_path, "cook", "default")
-    meta = EpisodeMeta(
-        task="cook",
-        seed=17,
-        instruction=result.instruction,
-        embodiment="aloha_viperx",
-        success=True,
-        object_count=4,
-        scene=result.scene,
-    )
-    save_episode(layout, 0, result.recorder, result.rows, meta, video=False)
-    z = read_episode(layout.episode(0), images=False).objects["skillet"][:, 2] - TABLE_TOP
+    z = _kept_episode(task, 17, tmp_path).objects["skillet"][:, 2] - TABLE_TOP
     lifted = np.flatnonzero(z > 0.05)
     down = np.flatnonzero(z[lifted[0] :] < 0.025) + lifted[0]
     assert len(down), "the skillet never went back onto the table"
