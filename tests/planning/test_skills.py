@@ -205,6 +205,30 @@ def test_pour_descending_lowers_the_lip_only_past_90_degrees():
     assert np.allclose(pour.q[-1], q0[:6], atol=1e-3)  # and back up, level
 
 
+def test_pour_withdrawing_draws_the_tipped_lip_off_what_it_poured_before_it_tilts_back():
+    ctx, X0, q0 = _bowl_in_left_hand(lift=0.15)
+    d = np.array([-1.0, 0.0, 0.0])
+    lip = X0.translation() + 0.05 * X0.rotation().col(2) + 0.075 * d
+    angle, drop, back = np.radians(110), 0.03, 0.04
+    pour = sk.pour(ctx, "left", angle, direction=d, descend=drop, withdraw=back, hold_steps=3)
+    poses = [ctx.model.held_pose("left", np.r_[q6, q0[6:]]) for q6 in pour.q]
+    p_O = X0.inverse() @ lip
+    tilts = np.array([np.arccos(np.clip(X.rotation().col(2)[2], -1, 1)) for X in poses])
+    lips = np.array([X @ p_O for X in poses])
+    full = np.flatnonzero(tilts > angle - 1e-3)
+    drawn = (lips[full] - lip) @ -d  # how far back the lip is, tipped
+    rise = lips[full, 2] - (lip[2] - drop)  # how far above its lowest
+    assert lips[full[0]] == pytest.approx(lip - [0, 0, drop], abs=1e-3)  # poured low
+    assert max(drawn) == pytest.approx(back, abs=1e-3) and min(drawn) > -1e-3
+    assert np.all(np.abs(lips[full, 1] - lip[1]) < 1e-3)  # straight back, never sideways
+    # It rises only drawn all the way back, and comes forward only risen all the way.
+    assert np.all((rise < 1e-3) | (drawn > back - 1e-3) | (rise > drop - 1e-3))
+    # The tilt back turns about the lip where the tilt started.
+    after = np.arange(full[-1] + 1, len(poses))
+    assert np.all(np.linalg.norm(lips[after] - lip, axis=1) < 1e-3)
+    assert np.allclose(pour.q[-1], q0[:6], atol=1e-3)
+
+
 def test_rehearsal_puts_the_state_back_whether_the_plan_works_or_not():
     ctx = sk.SkillContext(
         PlanningModel(Scene(name="pour", objects=(_bowl(-0.15, 0.0),))), speed=0.75

@@ -24,6 +24,7 @@ def pour(
     ignore: Iterable[str] = (),
     pivot: Sequence[float] | None = None,
     descend: float = 0.0,
+    withdraw: float = 0.0,
 ) -> ArmPlan:
     """Tilt the held container by `angle` (rad) about the horizontal axis through its rim
     point in `direction`, hold `hold_steps`, and tilt back.
@@ -34,7 +35,10 @@ def pour(
     `pivot` (a world point, e.g. a spout's lip) replaces the rim point: the container turns
     about the horizontal axis through it, across `direction`. A `descend` (m) lowers the pivot
     that far while the tilt goes on past 90 deg, where the lip is the container's lowest point:
-    it pours close to what it pours onto."""
+    it pours close to what it pours onto. A `withdraw` (m) draws the tipped container that far
+    back, horizontally against the pour direction, raises it by `descend` and moves it forward
+    again before it tilts back about the lip where it started: content lying with one end on
+    the inside of the lowered lip slides off it instead of being scooped up by the rising lip."""
     held = ctx.model.held.get(side)
     if held is None:
         raise PlanningError("gripper_empty", f"{side} holds no container to pour from")
@@ -54,7 +58,9 @@ def pour(
     for d in options:
         saved = ctx.q.copy()
         try:
-            return _pour(ctx, side, held.name, angle, d, hold_steps, back, ignore, pivot, descend)
+            return _pour(
+                ctx, side, held.name, angle, d, hold_steps, back, ignore, pivot, descend, withdraw
+            )
         except PlanningError as err:
             ctx.q = saved
             reasons.append(err.reason)
@@ -65,7 +71,17 @@ def pour(
 
 
 def _pour(
-    ctx: SkillContext, side, name, angle, d, hold_steps, back, ignore, pivot=None, descend=0.0
+    ctx: SkillContext,
+    side,
+    name,
+    angle,
+    d,
+    hold_steps,
+    back,
+    ignore,
+    pivot=None,
+    descend=0.0,
+    withdraw=0.0,
 ) -> ArmPlan:
     X_WO = ctx.model.held_pose(side, ctx.q)
     shape = ctx.model.object(name).shape
@@ -83,31 +99,39 @@ def _pour(
 
     lowest = np.pi / 2  # past it the lip is the lowest point of the container
 
-    def turned(a: float) -> RigidTransform:
+    back_off = np.array([-d[0], -d[1], 0.0])
+    back_off /= max(float(np.linalg.norm(back_off)), 1e-9)
+
+    def turned(a: float, shift: float = 0.0, rise: float = 0.0, dip: bool = True):
+        """The TCP at tilt `a`, the lip drawn back `shift` and raised `rise` (m) from where
+        the descent (with `dip`) has it."""
         R = RotationMatrix(_axis_angle(axis, a))
         low = 0.0
-        if descend > 0.0 and abs(angle) > lowest:
+        if dip and descend > 0.0 and abs(angle) > lowest:
             low = descend * float(np.clip((abs(a) - lowest) / (abs(angle) - lowest), 0.0, 1.0))
-        p = pivot - [0.0, 0.0, low]
+        p = pivot - [0.0, 0.0, low - rise] + shift * back_off
         return RigidTransform(R @ X_WT0.rotation(), p + R @ (X_WT0.translation() - pivot))
 
     reach = float(np.linalg.norm(X_WT0.translation() - pivot)) * abs(angle) + descend
-    tilt = track(
-        ctx, side, lambda s: turned(s * angle), reach, abs(angle), label="tilt", ignore=ignore
-    )
-    plans = [tilt, hold(ctx, side, hold_steps, label="pour")]
-    if back:
-        plans.append(
-            track(
-                ctx,
-                side,
-                lambda s: turned((1 - s) * angle),
-                reach,
-                abs(angle),
-                label="tilt back",
-                ignore=ignore,
-            )
-        )
+
+    def step(path, distance: float, rotation: float, label: str) -> ArmPlan:
+        return track(ctx, side, path, distance, rotation, label=label, ignore=ignore)
+
+    plans = [
+        step(lambda s: turned(s * angle), reach, abs(angle), "tilt"),
+        hold(ctx, side, hold_steps, label="pour"),
+    ]
+    if back and withdraw > 0.0:
+        # Back off the content, up by the descent, forward again above it: the tilt back then
+        # turns about the lip where it started, at its height (the reach the tilt planned for).
+        plans += [
+            step(lambda s: turned(angle, s * withdraw), withdraw, 0.0, "withdraw"),
+            step(lambda s: turned(angle, withdraw, s * descend), descend, 0.0, "withdraw up"),
+            step(lambda s: turned(angle, (1 - s) * withdraw, descend), withdraw, 0.0, "return"),
+            step(lambda s: turned((1 - s) * angle, dip=False), reach, abs(angle), "tilt back"),
+        ]
+    elif back:
+        plans.append(step(lambda s: turned((1 - s) * angle), reach, abs(angle), "tilt back"))
     plan = plans[0].then(*plans[1:])
     plan.label = f"pour {name} toward {np.round(d, 2).tolist()}"
     return plan
