@@ -126,6 +126,10 @@ FAR_DIRECTIONS = tuple(
 FAR_LIP_OFFSETS = (-0.075, -0.05, -0.10)
 FAR_POUR_ANGLES = (2.2, 2.1)
 POUR_HEIGHT = 0.015
+#: Serve: how much higher (m) the skillet is carried, in the order tried, when no serve plans
+#: at POUR_HEIGHT: a pan hanging 9 deg tilted in its grasp reached the plate with its low side
+#: (seed 16 randomized). (Carried level instead, it kept the rolls in: measured.)
+POUR_RAISES = (0.0, 0.02)
 #: Serve: how far (m) the lip, the pan's lowest point once tipped past 90 deg, is lowered
 #: during the rest of the tilt (``pour(descend=)``): the rolls leave 4 cm nearer the plate.
 #: Without it, rolls sliding out of the far-side tilt landed on or past the plate's far rim
@@ -776,19 +780,18 @@ def _serve(ctx: SkillContext, side: str, plate: np.ndarray) -> ArmPlan:
     skillet's turn about its axis puts the gripper as far from the lip as it plans; the first
     carry and tilt that both plan win.
 
-    The skillet is carried tilted as it hangs in the grasp (it sags 1-7 deg in the rim grasp;
-    the pours above were measured so). Only if none of that plans is the hand turned to carry
-    it level: a pan sagging 9 deg reached the plate with its low side (seed 16 randomized)."""
+    The skillet is carried tilted as it hangs in the grasp (it sags 1-7 deg in the rim
+    grasp); only if none of that plans is it carried higher (POUR_RAISES)."""
     reasons: list[str] = []
     searches = [
         (FAR_DIRECTIONS, offset, FAR_GRIP_ALIGNMENT, FAR_POUR_ANGLES) for offset in FAR_LIP_OFFSETS
     ]
     searches.append((POUR_DIRECTIONS, POUR_LIP_OFFSET, POUR_GRIP_ALIGNMENT, POUR_ANGLES))
-    for level in (False, True):
+    for raised in POUR_RAISES:
         for directions, offset, alignment, angles in searches:
             for d in directions:
                 plan = _serve_toward(
-                    ctx, side, plate, np.asarray(d), offset, alignment, angles, reasons, level
+                    ctx, side, plate, np.asarray(d), offset, alignment, angles, reasons, raised
                 )
                 if plan is not None:
                     return plan
@@ -805,23 +808,20 @@ def _serve_toward(
     alignment: float,
     angles: tuple[float, ...],
     reasons: list[str],
-    level: bool = False,
+    raised: float = 0.0,
 ) -> ArmPlan | None:
     """The serve toward `d` with the lip `lip_offset` (m) past the plate's centre, over the
     skillet's turns whose grip cosine is at most `alignment`, most far-side first, and
-    `angles`; None (reasons appended) when none plans. The skillet keeps the tilt it hangs
-    at in the grasp, or with `level` is carried level."""
+    `angles`, the pan's bottom POUR_HEIGHT + `raised` above the plate's rim; None (reasons
+    appended) when none plans."""
     held = ctx.model.held[side]
     gripper = ctx.model.embodiment.arm.gripper
     X_BT = held.X_GO.inverse() @ RigidTransform([gripper.tcp_x, 0, 0])
     R_WB = ctx.model.held_pose(side, ctx.q).rotation()
-    if level:
-        R = R_WB.matrix()
-        R_WB = RotationMatrix.MakeZRotation(float(np.arctan2(R[1, 0], R[0, 0])))
     saved = ctx.q.copy()
     lip = plate[:2] + lip_offset * d[:2]
     centre = lip - (SKILLET.radius - 0.01) * d[:2]
-    p_B = np.array([*centre, plate[2] + PLATE.height + POUR_HEIGHT])
+    p_B = np.array([*centre, plate[2] + PLATE.height + POUR_HEIGHT + raised])
     options = []
     for yaw in np.linspace(0, 2 * np.pi, 12, endpoint=False):
         X_WB = RigidTransform(RotationMatrix.MakeZRotation(yaw) @ R_WB, p_B)

@@ -198,3 +198,31 @@ def test_a_roll_pinned_in_the_tipped_pan_is_found_for_another_tip(cook):
     beside = level @ RigidTransform([cook.SKILLET.radius + 0.01, 0.0, 0.03])
     for roll in (on_plate, beside):
         assert not cook._lies_in_pan({"skillet": level, "roll_0": roll}, "roll_0")
+
+
+def test_the_serve_can_carry_the_pan_higher_over_the_plate(cook, task):
+    """The serve's fallback (``_serve_toward(raised=)``, POUR_RAISES: a pan hanging 9 deg
+    tilted in its grasp reached the plate with its low side, seed 16 randomized) carries the
+    pan as it hangs with its bottom that much higher, then tips it and brings it back."""
+    from bicoord_drake.planning.model import PlanningModel
+    from bicoord_drake.planning.skills import SkillContext, pick
+
+    scene = task.sample_scene(0)
+    ctx = SkillContext(PlanningModel(scene))
+    pick(ctx, "right", "skillet", kinds=["rim"], lift=0.10)
+    q0 = ctx.q.copy()
+    plate = np.array(scene.object("plate").pose.xyz)
+    for raised in cook.POUR_RAISES:
+        plan = None
+        for d in cook.FAR_DIRECTIONS:
+            ctx.q = q0.copy()
+            args = (ctx, "right", plate, np.asarray(d), -0.075, cook.FAR_GRIP_ALIGNMENT)
+            plan = plan or cook._serve_toward(*args, cook.FAR_POUR_ANGLES, [], raised)
+        assert plan is not None, raised
+        poses = [ctx.model.held_pose("right", np.r_[q0[:6], q6]) for q6 in plan.q]
+        tilt = np.array([np.arccos(np.clip(X.rotation().col(2)[2], -1, 1)) for X in poses])
+        assert max(tilt) > 2.0  # tipped, and back as it was over the plate:
+        over = np.flatnonzero(np.abs(tilt[: np.argmax(tilt)] - tilt[-1]) < 1e-4)[-1]
+        bottom = plate[2] + cook.PLATE.height + cook.POUR_HEIGHT + raised
+        assert poses[over].translation()[2] == pytest.approx(bottom, abs=2e-3)
+        assert poses[-1].translation() == pytest.approx(poses[over].translation(), abs=1e-3)
