@@ -6,7 +6,8 @@ STI = (1/L) sum_t m^l_t m^r_t max(0, 1 - r_t) (PRODUCT.md). Timing (which arm ac
 only the m factors. With both arms acting at every step the same TCP paths would give
 mean_t max(0, 1 - r_t): the most an expert could reach by keeping both arms busy along the
 paths it already takes. Past that bound STI rises only if the arms work closer together
-(lower r), not through more overlap. Per episode: length, SMP, STI, the bound, ARD (percent).
+(lower r), not through more overlap. Per episode: length, SMP, STI, the bound, ARD (percent);
+then per task the means, and their mean over the tasks.
 """
 
 from __future__ import annotations
@@ -40,6 +41,19 @@ def main() -> None:
     a = np.array([r[2:] for r in rows])
     smp, sti, bound, ard = a.mean(axis=0)
     print(f"| mean of {len(rows)} | | {smp:.1f} | {sti:.1f} | {bound:.1f} | {ard:.1f} |")
+    tasks = sorted({r[0] for r in rows})
+    print("\n| task | N | SMP % | STI % | STI if both always act % | overlap can add | ARD % |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    per_task = []
+    for task in tasks:
+        of_task = np.array([r[2:] for r in rows if r[0] == task])
+        per_task.append(of_task.mean(axis=0))
+        smp, sti, bound, ard = per_task[-1]
+        line = f"{smp:.1f} | {sti:.1f} | {bound:.1f} | {bound - sti:+.1f} | {ard:.1f}"
+        print(f"| {task} | {len(of_task)} | {line} |")
+    smp, sti, bound, ard = np.mean(per_task, axis=0)
+    line = f"{smp:.1f} | {sti:.1f} | **{bound:.1f}** | {bound - sti:+.1f} | {ard:.1f}"
+    print(f"| **mean of the {len(tasks)} tasks** | {len(rows)} | {line} |")
 
 
 if __name__ == "__main__":
