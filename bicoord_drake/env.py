@@ -44,7 +44,8 @@ An action of the wrong shape, or with NaN/inf, raises :class:`InvalidActionError
 Info after each step: ``step`` (control steps since the reset), ``completed`` / ``credit`` (per
 stage), ``score`` (:func:`bicoord_drake.metrics.stage_score` of the credits, the stages from the
 start stage on: the same function as the evaluation's SSR), ``success``, ``done`` (success, the
-stage of a stage rollout counted, or the step limit) and ``truncated`` (the step limit ended it).
+stage of a stage rollout counted, the step limit, or an early stop), ``truncated`` (the step limit
+ended it) and ``failure_reason`` (why an early stop ended it, else None).
 
 Start from a stage: ``reset(seed, stage=k)`` (the demonstration of `seed` is looked up in
 ``make_env(..., data=DIR)``) or ``reset(stage=k, episode=path_or_Episode)`` restores the
@@ -55,6 +56,16 @@ monitor treats stages ``0..k-1`` as already counted - they are replaced by alway
 stages, so the dependencies of stage ``k`` hold - and scores stage ``k`` and later. Such a *stage
 rollout* is done as soon as stage ``k`` counts (``info["stage_success"]``) or at the step limit,
 counted from the reset; ``stage=0`` is a stage rollout from the initial state.
+
+Early stop (``make_env(..., early_stop=True)``; off by default here, on in evaluations): a rollout
+whose task object is lost - nothing can bring it back - is done at once, a failure, with
+``info["failure_reason"]`` saying which object, where and since when (``"object_left_table at
+step 40: 'cube' is 0.71 m below the table top (since step 33)"``; None otherwise). An object is
+lost (:class:`LostObjects`) when its origin is more than :data:`LOST_DROP` below the table top
+(on the floor: the top is 4 cm thick) or more than :data:`LOST_MARGIN` outside the table's
+footprint, no finger touching it, for :data:`LOST_SECONDS` in a row; distractors, fixtures and
+what the task allows off the table (:meth:`~bicoord_drake.tasks.base.Task.may_leave_table`) are
+not watched. Nothing else ends a rollout early: a slow policy keeps its whole step limit.
 """
 
 from __future__ import annotations
@@ -70,7 +81,8 @@ from bicoord_drake.data.episode import Episode, read_episode
 from bicoord_drake.episode_setup import Assembly, EpisodeSetup, assemble
 from bicoord_drake.models.embodiment import SIDES, other_side
 from bicoord_drake.models.layout import POSE_SIZE, ActionLayout
-from bicoord_drake.models.scene import Scene
+from bicoord_drake.models.scene import TABLE_TOP, Scene
+from bicoord_drake.models.table import TABLE_SIZE
 from bicoord_drake.scenario import (  # EVAL_SEED_START: re-exported
     EVAL_SEED_START,  # noqa: F401
     EVALUATION_DEFAULTS,
@@ -82,7 +94,7 @@ from bicoord_drake.scenario import (  # EVAL_SEED_START: re-exported
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.stages import WorldState
 from bicoord_drake.stages.stage import Stage
-from bicoord_drake.tasks.base import Split, Task, WorldView, step_limit_at
+from bicoord_drake.tasks.base import Region, Split, Task, WorldView, step_limit_at
 
 ActionMode = Literal["qpos", "endpose"]
 ACTION_MODES: tuple[str, ...] = ("qpos", "endpose")
@@ -91,6 +103,17 @@ ENDPOSE_WIDTH = POSE_SIZE + 1
 ENDPOSE_LAYOUT = "[left xyz, left wxyz, left opening, right xyz, right wxyz, right opening]"
 #: The split of an environment's scenes and instructions unless the scenario sets one.
 ENVIRONMENT_SPLIT = EVALUATION_DEFAULTS["split"]
+#: Early stop: an object whose origin is this far below the table top (m) has left it (the top
+#: is 4 cm thick, so it is beside the table, falling or on the floor).
+LOST_DROP = 0.05
+#: Early stop: an object whose origin is this far outside the table's footprint (m, along x or
+#: y) has left the workspace (beyond the arms' bases, y = -0.42 to -0.55).
+LOST_MARGIN = 0.15
+#: Early stop: how long (s) an object must stay off the table, untouched by the fingers, to be
+#: lost (a fall to the floor takes 0.4 s; an object caught in flight is not lost).
+LOST_SECONDS = 0.5
+#: The failure code of a rollout ended early because a task object left the table.
+OBJECT_LEFT_TABLE = "object_left_table"
 
 
 class InvalidActionError(ValueError):
@@ -112,6 +135,7 @@ def make_env(
     step_limit: int | None = None,
     data: str | Path | None = None,
     embodiment: str | None = None,
+    early_stop: bool = False,
 ) -> Env:
     """An :class:`Env` for `task` (a name or a Task) whose station is built for `seed`.
 
@@ -126,7 +150,8 @@ def make_env(
     overrides the task's (TASKS.md); `data` is where ``reset(seed, stage=k)`` finds the
     demonstration of `seed`; `randomize` gives every scene its seed's randomization (`split`'s
     textures, lights, table height, clutter; a demonstration's scene keeps its own);
-    `embodiment` names the robot (default: the ViperX pair). A bad value raises a ValueError
+    `embodiment` names the robot (default: the ViperX pair); `early_stop` ends a rollout at once
+    when a task object leaves the table (see the module docstring). A bad value raises a ValueError
     naming the argument or the scenario's field (an unknown embodiment lists the valid ones; a
     robot the task does not declare in ``Task.supported_robots`` is refused before anything is
     built, naming the robots it supports).
@@ -152,7 +177,9 @@ def make_env(
     if seed is None:
         seed = check_evaluation_seed(resolved)
     setup = resolved.episode_setup(seed, task if isinstance(task, Task) else None)
-    return Env(setup, action_mode=action_mode, step_limit=step_limit, data=data)
+    return Env(
+        setup, action_mode=action_mode, step_limit=step_limit, data=data, early_stop=early_stop
+    )
 
 
 def _check_action_mode(action_mode: str) -> None:
@@ -167,7 +194,8 @@ class Env:
     scene's; ``reset(seed)`` takes the same settings to another seed). Attributes a privileged
     (built-in) policy may read: ``task``, ``scene``, ``sim``, ``layout``, ``episode`` (the
     demonstration of the last reset, if any), ``stage`` (the stage of a stage rollout, else
-    None), ``start_frame`` (its first recorded frame), ``action`` (the joint action in effect).
+    None), ``start_frame`` (its first recorded frame), ``action`` (the joint action in effect),
+    ``failure`` (why an early stop ended the rollout, else None).
     """
 
     def __init__(
@@ -177,6 +205,7 @@ class Env:
         action_mode: ActionMode = "qpos",
         step_limit: int | None = None,
         data: str | Path | None = None,
+        early_stop: bool = False,
     ) -> None:
         _check_action_mode(action_mode)
         if step_limit is not None and step_limit < 1:
@@ -189,6 +218,9 @@ class Env:
         self.start_frame = 0
         self.instruction = ""
         self.data = None if data is None else Path(data)
+        self.early_stop = bool(early_stop)
+        self.failure: str | None = None
+        self._lost: LostObjects | None = None
         self._ik: _EndposeIK | None = None
         self._build(setup)
         self.step_limit = int(step_limit or step_limit_at(self.task, self.config.control_rate))
@@ -308,6 +340,12 @@ class Env:
         self.monitor = self.assembly.new_monitor(given=stage)
         self.instruction = self.setup.instruction()
         self.steps = 0
+        self.failure = None
+        self._lost = (
+            LostObjects(self.task, self.scene, self.config.control_rate)
+            if self.early_stop
+            else None
+        )
         self.ik_failed: list[str] = []
         self._ready = True
         return self.observation()
@@ -365,7 +403,7 @@ class Env:
             )
         start = int(episode.stages[stage][0])
         action = np.asarray(episode.initial_action[stage], dtype=float)
-        before = episode.joint_action[start - 2] if start >= 2 else episode.initial_action[0]
+        before = episode.replay_action[start - 2] if start >= 2 else episode.initial_action[0]
         self.sim.restore(episode.initial_state[stage], action, before, start)
         self.action = action.copy()
         self.start_frame = start
@@ -376,9 +414,9 @@ class Env:
         if not self._ready:
             raise RuntimeError("call reset() before step()")
         if self.done:
+            why = self.failure or ("success" if self.monitor.success else "step limit")
             raise RuntimeError(
-                f"the rollout is over ({'success' if self.monitor.success else 'step limit'} "
-                f"after {self.steps} steps); call reset()"
+                f"the rollout is over ({why} after {self.steps} steps); call reset()"
             )
         a = self._validate(action)
         if self.action_mode == "endpose":
@@ -388,7 +426,10 @@ class Env:
         self.sim.step(a)
         self.action = a
         self.steps += 1
-        self.monitor.update(WorldState.capture(self.sim, a, self.scene))
+        state = WorldState.capture(self.sim, a, self.scene)
+        self.monitor.update(state)
+        if self._lost is not None and not self._goal_reached():
+            self.failure = self._lost.update(state, self.steps)
         return self.observation(), self.info()
 
     def _validate(self, action: Any) -> np.ndarray:
@@ -437,10 +478,11 @@ class Env:
     # ---------------------------------------------------------------- reading
     @property
     def done(self) -> bool:
-        """Success, the stage of a stage rollout counted, or the step limit reached."""
+        """Success, the stage of a stage rollout counted, the step limit reached, or (early
+        stop) a task object lost: :attr:`failure`."""
         if not self._ready or self.steps == 0:
             return False
-        return self.steps >= self.step_limit or self._goal_reached()
+        return self.steps >= self.step_limit or self._goal_reached() or self.failure is not None
 
     def _goal_reached(self) -> bool:
         if self.stage is not None:
@@ -473,7 +515,8 @@ class Env:
         return environment_state(self.sim.object_poses(), self.state_objects)
 
     def info(self) -> dict[str, Any]:
-        """Stage completion, score so far, success and the step count."""
+        """Stage completion, score so far, success, the step count and why an early stop ended
+        the rollout (``failure_reason``, None when none did)."""
         completed = self.monitor.completed()
         info: dict[str, Any] = {
             "step": self.steps,
@@ -482,14 +525,77 @@ class Env:
             "score": self.monitor.score(),
             "success": self.monitor.success,
             "done": self.done,
-            "truncated": self.steps >= self.step_limit and not self._goal_reached(),
+            "truncated": (
+                self.steps >= self.step_limit and not self._goal_reached() and self.failure is None
+            ),
             "stage": self.stage,
+            "failure_reason": self.failure,
         }
         if self.stage is not None:
             info["stage_success"] = completed[self.stage]
         if self.action_mode == "endpose":
             info["ik_failed"] = list(self.ik_failed)
         return info
+
+
+# --------------------------------------------------------------------------- early stop
+def off_table(xyz: np.ndarray) -> str | None:
+    """Where a point (an object's origin) is off the table: more than :data:`LOST_DROP` below
+    its top, or more than :data:`LOST_MARGIN` outside its footprint; None when it is not."""
+    x, y, z = (float(v) for v in xyz[:3])
+    if z < TABLE_TOP - LOST_DROP:
+        return f"{TABLE_TOP - z:.2f} m below the table top"
+    out = max(abs(x) - TABLE_SIZE[0] / 2, abs(y) - TABLE_SIZE[1] / 2)
+    if out > LOST_MARGIN:
+        return f"{out:.2f} m outside the table's edge"
+    return None
+
+
+def _inside(xyz: np.ndarray, region: Region) -> bool:
+    lower, upper = (np.asarray(c, dtype=float) for c in region)
+    return bool(np.all(xyz[:3] >= lower) and np.all(xyz[:3] <= upper))
+
+
+class LostObjects:
+    """The early-stop watch of one rollout: which task object is lost (see the module
+    docstring). Watched: the scene's free objects (no fixtures, no distractors) but those the
+    task lets leave the table anywhere; one it lets leave into regions is lost only outside
+    them (:meth:`~bicoord_drake.tasks.base.Task.may_leave_table`)."""
+
+    def __init__(self, task: Task, scene: Scene, control_rate: float) -> None:
+        allowed = dict(task.may_leave_table(scene))
+        free = [o.name for o in scene.free_objects]
+        unknown = sorted(set(allowed) - set(free))
+        if unknown:
+            raise ValueError(
+                f"task {task.name}: may_leave_table names {unknown}, not free objects of the "
+                f"scene ({free})"
+            )
+        self.watched = [n for n in free if n not in allowed or allowed[n] is not None]
+        self.regions: dict[str, tuple[Region, ...]] = {
+            n: tuple(r) for n, r in allowed.items() if r is not None
+        }
+        #: Control steps in a row an object must be off the table to be lost.
+        self.hold = max(1, int(np.ceil(LOST_SECONDS * control_rate - 1e-9)))
+        self._since: dict[str, int] = {}
+
+    def update(self, state: WorldState, step: int) -> str | None:
+        """The failure reason after control step `step` (`state`: the world then), None while
+        nothing is lost."""
+        fingers = state.contacts if state.finger_contacts is None else state.finger_contacts
+        for name in self.watched:
+            pose = state.object_poses.get(name)
+            why = None if pose is None else off_table(pose)
+            if why is None or fingers.get(name) or self._allowed(name, pose):
+                self._since.pop(name, None)
+                continue
+            first = self._since.setdefault(name, step)
+            if step - first + 1 >= self.hold:
+                return f"{OBJECT_LEFT_TABLE} at step {step}: {name!r} is {why} (since step {first})"
+        return None
+
+    def _allowed(self, name: str, pose: np.ndarray) -> bool:
+        return any(_inside(pose, r) for r in self.regions.get(name, ()))
 
 
 # --------------------------------------------------------------------------- helpers

@@ -33,8 +33,10 @@ starts a stage rollout from a demonstration (:meth:`bicoord_drake.env.Env.reset`
 Reward: the progress of the stage score, ``info["score"]`` now minus before the step, so the
 return of a rollout is its final stage score (the evaluation's per-rollout SSR term, 1.0 for a
 success). It is negative when a persistent stage (an object at its goal) stops holding.
-``terminated``: the task succeeded (in a stage rollout: that stage counted); ``truncated``: the
-step limit (the task's, or ``step_limit=``) ended it. ``info`` is the environment's (``score``,
+``terminated``: the task succeeded (in a stage rollout: that stage counted), or with
+``early_stop=True`` a task object left the table (a failure: ``info["failure_reason"]`` says
+which, :mod:`bicoord_drake.env`; None otherwise); ``truncated``: the step limit (the task's, or
+``step_limit=``) ended it. ``info`` is the environment's (``score``,
 ``completed``, ``credit``, ``success``, ``step``, ...) plus ``is_success`` (LeRobot's name) and
 ``seed``. ``render()`` (``render_mode="rgb_array"``) returns the head camera's current image.
 
@@ -46,7 +48,8 @@ faster), ``cameras`` (which of them are observed; default the scenario's), ``res
 ``action_mode``, ``fps`` (the task's step limit scales with it), ``step_limit``, ``data``
 (demonstrations for stage resets), ``embodiment`` (the robot; default the ViperX pair; one
 the task does not declare in ``Task.supported_robots`` is refused), ``environment_state``
-(privileged object poses in the observation; off by default).
+(privileged object poses in the observation; off by default), ``early_stop`` (end a rollout
+whose task object left the table; off by default).
 """
 
 from __future__ import annotations
@@ -152,6 +155,7 @@ class BiCoordEnv(gymnasium.Env):
         data: str | Path | None = None,
         embodiment: str | None = None,
         environment_state: bool = False,
+        early_stop: bool = False,
     ) -> None:
         from bicoord_drake.config import CAMERA_NAMES, check_seed
         from bicoord_drake.env import ACTION_MODES, ENVIRONMENT_SPLIT, Env
@@ -219,6 +223,7 @@ class BiCoordEnv(gymnasium.Env):
             action_mode=action_mode,  # type: ignore[arg-type]
             step_limit=step_limit,
             data=data,
+            early_stop=early_stop,
         )
         self.step_limit = self.bicoord_env.step_limit
         #: The objects of ``observation.environment_state`` in the current scene (empty when it

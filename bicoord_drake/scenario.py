@@ -25,12 +25,21 @@ from __future__ import annotations
 import argparse
 import copy
 import json
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, ClassVar, get_args
 
+import numpy as np
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationError,
+    field_validator,
+    model_validator,
+)
 
 from bicoord_drake.config import (
     IMAGE_SIDE,
@@ -64,6 +73,69 @@ SHORTCUTS: dict[str, tuple[str, ...]] = {
     "cameras": ("station", "cameras", "names"),
     "resolution": ("station", "cameras"),
 }
+
+
+#: Largest action-noise level (rad): a standard deviation of 0.2 rad (11.5 degrees) on every
+#: joint target is far past what a demonstration survives.
+ACTION_NOISE_MAX = 0.2
+#: Mixed with an episode's seed into the seed of its action-noise generator, so the noise is
+#: independent of the scene's draws (``default_rng(seed)``).
+ACTION_NOISE_STREAM = 0x44415254  # "DART"
+
+ActionNoise = float | tuple[float, float]
+"""An action-noise setting: one level (rad), or a range ``(lo, hi)`` to draw each episode's
+level from."""
+
+
+def parse_action_noise(value: Any) -> ActionNoise:
+    """An action-noise setting from a number, ``"SIGMA"``, ``"LO-HI"`` or a pair ``[lo, hi]``:
+    levels in [0, :data:`ACTION_NOISE_MAX`] rad, ``lo <= hi`` (a ValueError saying what is
+    wrong otherwise); a range of one level is that level."""
+    text = value
+    if isinstance(value, str):
+        parts = [p.strip() for p in re.split(r"(?<![eE])-", value.strip())]
+        if len(parts) == 2 and all(parts):
+            value = parts
+        elif len(parts) == 1:
+            value = parts[0]
+        else:
+            raise ValueError(f"write SIGMA or LO-HI in rad (e.g. 0.01 or 0.005-0.02), got {text!r}")
+    pair = isinstance(value, list | tuple)
+    items = list(value) if pair else [value]
+    if pair and len(items) != 2:
+        raise ValueError(f"a range is two levels [lo, hi], got {len(items)}: {text!r}")
+    levels = []
+    for item in items:
+        if isinstance(item, bool):
+            raise ValueError(f"a level is a number of radians, got {item!r}")
+        try:
+            level = float(item)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"write SIGMA or LO-HI in rad (e.g. 0.01 or 0.005-0.02), got {text!r}"
+            ) from None
+        if not 0.0 <= level <= ACTION_NOISE_MAX:
+            raise ValueError(
+                f"a level must be in [0, {ACTION_NOISE_MAX:g}] rad (a standard deviation), "
+                f"got {level:g}"
+            )
+        levels.append(level)
+    if not pair:
+        return levels[0]
+    if levels[0] > levels[1]:
+        raise ValueError(f"a range runs from low to high: [{levels[0]:g}, {levels[1]:g}]")
+    return levels[0] if levels[0] == levels[1] else (levels[0], levels[1])
+
+
+def action_noise_draw(setting: ActionNoise, seed: int) -> tuple[float, np.random.Generator]:
+    """The action-noise level of episode `seed` (drawn uniformly from a range, or the one
+    level given) and the generator of its noise, both from the seed. One uniform draw comes
+    first either way, so the level ``lo + (hi - lo) u`` recorded in the episode's scenario
+    gives the same level and the same noise again."""
+    lo, hi = setting if isinstance(setting, tuple) else (setting, setting)
+    rng = np.random.default_rng([ACTION_NOISE_STREAM, int(seed)])
+    u = rng.random()
+    return (lo if lo == hi else lo + (hi - lo) * u), rng
 
 
 def evaluation_seed(seed: int) -> int:
@@ -141,8 +213,18 @@ class SceneSettings(BaseModel):
         return self
 
 
-#: The order of a scenario's fields in files.
-FIELD_ORDER = ("task", "seed", "episodes", "randomize", "split", "embodiment", "station")
+#: The order of a scenario's fields in files (``action_noise`` only when it is on: the records
+#: of runs without it are those of before it existed).
+FIELD_ORDER = (
+    "task",
+    "seed",
+    "episodes",
+    "randomize",
+    "split",
+    "embodiment",
+    "station",
+    "action_noise",
+)
 
 
 class Scenario(SceneSettings):
@@ -171,6 +253,19 @@ class Scenario(SceneSettings):
         description="instructions and (with randomize) textures of this split (default: seen "
         "for generation, unseen for evaluation and environments)",
     )
+    action_noise: ActionNoise = Field(
+        0.0,
+        description="DART noise of the expert's demonstrations (generation): the standard "
+        "deviation, rad, of a zero-mean Gaussian added to each arm joint target the station "
+        "executes (grippers untouched; joint_action/vector stays the expert's label, "
+        "joint_action/executed holds what ran), or a range LO-HI from which each episode draws "
+        f"its level; levels in [0, {ACTION_NOISE_MAX:g}]; 0: off",
+    )
+
+    @field_validator("action_noise", mode="before")
+    @classmethod
+    def _action_noise(cls, value: Any) -> ActionNoise:
+        return parse_action_noise(value)
 
     # ---------------------------------------------------------------- derived values
     @property
@@ -220,16 +315,31 @@ class Scenario(SceneSettings):
         missing = {k: v for k, v in defaults.items() if getattr(self, k) is None}
         return self.with_overrides(missing) if missing else self
 
+    @property
+    def noisy(self) -> bool:
+        """Whether the expert's executed actions get noise (``action_noise`` is not 0)."""
+        return self.action_noise != 0.0
+
+    def action_noise_level(self, seed: int) -> float:
+        """The action-noise level (rad) of the episode of `seed` (:func:`action_noise_draw`)."""
+        return action_noise_draw(self.action_noise, seed)[0]
+
     def for_episode(self, task: str, seed: int) -> Scenario:
-        """The scenario of one episode of this run: its task and seed, one episode."""
-        return self.with_overrides({"task": task, "seed": seed, "episodes": 1})
+        """The scenario of one episode of this run: its task and seed, one episode (and the
+        action-noise level it drew from a range)."""
+        overrides: dict[str, Any] = {"task": task, "seed": seed, "episodes": 1}
+        if self.noisy:
+            overrides["action_noise"] = self.action_noise_level(seed)
+        return self.with_overrides(overrides)
 
     # ---------------------------------------------------------------- files
     def to_dict(self) -> dict[str, Any]:
         """The fields as plain JSON values, in file order (the robot once, at the top)."""
         data = self.model_dump(mode="json")
         data["station"].pop("embodiment", None)
-        return {name: data[name] for name in FIELD_ORDER}
+        if not self.noisy:
+            data.pop("action_noise")
+        return {name: data[name] for name in FIELD_ORDER if name in data}
 
     def to_yaml(self) -> str:
         """The scenario as a YAML document (floats written exactly)."""
@@ -348,7 +458,7 @@ def fold_shortcuts(data: Any, shortcuts: Sequence[str], defaults: Mapping[str, A
 
 #: The keys a front door's settings accept besides its own: the scenario's fields (but its
 #: station) and the shortcuts.
-SCENARIO_KEYS = ("task", "seed", "episodes", "randomize", "split", "embodiment", *SHORTCUTS)
+SCENARIO_KEYS = (*(name for name in FIELD_ORDER if name != "station"), *SHORTCUTS)
 
 
 class RunConfig(BaseModel):
@@ -410,6 +520,10 @@ class RunConfig(BaseModel):
     @property
     def embodiment(self) -> str:
         return self.scenario.embodiment
+
+    @property
+    def action_noise(self) -> ActionNoise:
+        return self.scenario.action_noise
 
     @property
     def station(self) -> StationConfig:
@@ -627,6 +741,7 @@ FLAGS: dict[str, tuple[str, ...]] = {
     "randomize": ("randomize",),
     "split": ("split",),
     "embodiment": ("embodiment",),
+    "action_noise": ("action_noise",),
 }
 
 
@@ -689,7 +804,10 @@ def add_scenario_arguments(
     )
     for name, path in FLAGS.items():
         kwargs: dict[str, Any] = {"default": None}
-        if name == "resolution":
+        if name == "action_noise":
+            kwargs["metavar"] = "SIGMA|LO-HI"
+            help_text = field_help(path)
+        elif name == "resolution":
             kwargs["metavar"] = "WxH"
             help_text = (
                 f"camera image size WIDTHxHEIGHT, each side in [{IMAGE_SIDE[0]}, "

@@ -25,6 +25,10 @@ reset(instruction) and act(obs) -> action, or a function act(obs). Evaluation se
 (the verdict is cached in ~/.cache/bicoord_drake/expert_check/, or $BICOORD_CACHE), except with
 --policy expert, where it is a failed rollout counted in SR and SSR. With --data the rollouts
 are the demonstrations' own seeds and scenes, at the rate and physics each was recorded with.
+A rollout ends at success, at the step limit, or early - a failure, with its reason in the
+report - when nothing can be saved: a task object on the floor or outside the workspace, or the
+physics diverged (--no-early-stop: only divergence ends one early). A slow policy keeps its
+whole step limit.
 The report (report.json, stage_success.png) goes to <out>/<task>/<policy>/. Locally or with
 --backend ray the rollouts run in parallel (one environment and policy instance per worker; by
 default one per core, --workers 1 runs them in this process); the report is the same as a
@@ -87,6 +91,12 @@ def main(argv: list[str] | None = None) -> int:
         help="override the task's step limit (default: TASKS.md's, scaled to the control rate)",
     )
     parser.add_argument(
+        "--no-early-stop",
+        action="store_true",
+        help="run rollouts whose task object left the table (on the floor, or more than 15 cm "
+        "outside the table) to the step limit instead of ending them at once as failures",
+    )
+    parser.add_argument(
         "--no-expert-check", action="store_true", help="do not skip seeds the expert fails"
     )
     parser.add_argument(
@@ -144,6 +154,7 @@ def main(argv: list[str] | None = None) -> int:
             out=args.out,
             action_mode=args.action_mode,
             step_limit=args.step_limit,
+            early_stop=not args.no_early_stop,
             expert_check=not args.no_expert_check,
             max_tries=args.max_tries,
             workers=args.workers,

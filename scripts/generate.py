@@ -16,6 +16,8 @@ Examples:
     python scripts/generate.py --scenario scenarios/aloha_50hz.yaml --task jigsaw
     python scripts/generate.py --scenario scenarios/benchmark.yaml:randomized --task all
     python scripts/generate.py --task jigsaw --set station.kp_scale=2 --config-name stiff
+    python scripts/generate.py --task jigsaw --action-noise 0.01  # DART: into .../default_noisy
+    python scripts/generate.py --task jigsaw --action-noise 0.005-0.02   # a level per episode
     python scripts/generate.py --scenario data/jigsaw/default/data/episode3.hdf5 --out again
     python scripts/generate.py --scenario scenarios/aloha_50hz.yaml --print-scenario
 
@@ -26,7 +28,10 @@ before anything runs, and --task all means every task that supports the robot (t
 named as skipped). Seeds are tried from --seed upward until --episodes succeed; an episode is kept
 only if the expert ran in physics and every stage verified. Every episode file records its
 scenario: --scenario EPISODE.hdf5 makes that episode again (only its seed is tried) and says
-whether the actions are the recorded ones, bit for bit. Failures and their reasons go to
+whether the actions are the recorded ones, bit for bit. --action-noise SIGMA (rad; or LO-HI,
+one level per episode drawn from its seed) executes the expert's arm joint targets with
+Gaussian noise (DART): joint_action/vector keeps the expert's label, joint_action/executed what
+ran, and the episode is kept only if every stage still verified. Failures and their reasons go to
 <out>/<task>/<config>/manifest.json; <out>/dataset_<config>.json lists the run's tasks.
 Running the same command again resumes where it stopped. Exit status: 0 when every task has
 its episodes, 1 when some could not be made (or on an error), 2 for bad arguments, 75 when the
@@ -75,6 +80,7 @@ def main(argv: list[str] | None = None) -> int:
             "task": "a wrong name lists them",
             "episodes": "per task",
             "randomize": "into <out>/<task>/randomized by default",
+            "action_noise": "into <out>/<task>/<config>_noisy by default",
         },
     )
     parser.add_argument("--out", default="data", help="output root (default: data)")
@@ -160,7 +166,7 @@ def main(argv: list[str] | None = None) -> int:
             out=args.out,
             config_name=args.config_name
             or name
-            or default_config_name(scenario.randomize, scenario.embodiment),
+            or default_config_name(scenario.randomize, scenario.embodiment, scenario.noisy),
             max_tries=args.max_tries if args.max_tries is not None else (1 if episode else 0),
             video=not args.no_video,
             workers=args.workers,

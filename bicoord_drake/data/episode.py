@@ -19,6 +19,11 @@ Inside an episode file (T frames, S stages; PRODUCT.md, Data)::
     joint_action/{left,right}_gripper (T,)        commanded opening, 1 = open
     joint_action/vector              (T, A)       [left n, left grip, right n, right grip]
                                                   (A = 2 (n + 1): 14 for the ViperX pair)
+    joint_action/executed            (T, A)       what the station executed, same layout, when
+                                                  it differs from the label: the expert's
+                                                  actions with action noise (DART; only
+                                                  episodes generated with noise). ``vector``
+                                                  and the per-arm datasets stay the label
     joint_state/vector               (T, A)       measured, same layout
     endpose/{left,right}_endpose     (T, 7)       TCP xyz + quaternion wxyz, world
     objects/<name>/pose              (T, 7)
@@ -28,16 +33,19 @@ Inside an episode file (T frames, S stages; PRODUCT.md, Data)::
     stages/score                     (S,) float64
     stages/{subgoal,left,right}      (S,) str
     stages/initial_state             (S, n)       plant [q; v] at each stage's start frame
-    stages/initial_action            (S, A)       action in effect before that frame
+    stages/initial_action            (S, A)       action in effect before that frame (the
+                                                  executed one, when recorded)
     stage_index                      (T,) int64
     attrs: schema_version, task, seed, instruction, fps, embodiment, success, object_count,
            package_version, config (JSON), scene (JSON), frame_count,
            scenario (YAML: the full scenario that made the episode, bicoord_drake.scenario;
-           absent from files written before it was recorded)
+           absent from files written before it was recorded),
+           action_noise (the noise level, rad, of an episode generated with action noise)
 
 The vector layout is the embodiment's (:class:`~bicoord_drake.models.layout.ActionLayout`;
 :attr:`Episode.layout` from the ``embodiment`` attribute). Frame ``t`` holds the observation
-*before* action ``t`` and action ``t`` itself. Every file is
+*before* action ``t`` and action ``t`` itself. Replaying ``joint_action/executed`` where it exists,
+else ``joint_action/vector`` (:attr:`Episode.replay_action`), reproduces the episode. Every file is
 written atomically: a temporary file in the same directory, then ``os.replace``; nothing partial
 ever appears under the final name. The recorder knows nothing about the task it records.
 """
@@ -273,6 +281,7 @@ class EpisodeRecorder:
         self._intrinsic: dict[str, list[np.ndarray]] = {}
         self._extrinsic: dict[str, list[np.ndarray]] = {}
         self._action: list[np.ndarray] = []
+        self._executed: list[np.ndarray] = []
         self._joint_state: list[np.ndarray] = []
         self._endpose: dict[str, list[np.ndarray]] = {s: [] for s in SIDES}
         self._objects: dict[str, list[np.ndarray]] = {}
@@ -290,6 +299,14 @@ class EpisodeRecorder:
     def actions(self) -> np.ndarray:
         """The recorded actions, (T, A) float64 (a copy)."""
         return np.array(self._action, dtype=np.float64).reshape(len(self), self.layout.action_size)
+
+    @property
+    def executed_actions(self) -> np.ndarray | None:
+        """The executed actions, (T, A) float64 (a copy), if they were recorded apart from the
+        labels (``executed_action`` of :meth:`add_frame`); None otherwise."""
+        if not self._executed:
+            return None
+        return np.array(self._executed, dtype=np.float64)
 
     @property
     def joint_states(self) -> np.ndarray:
@@ -310,9 +327,11 @@ class EpisodeRecorder:
         extrinsic_cv: Mapping[str, np.ndarray] | None = None,
         plant_state: np.ndarray | None = None,
         joint_positions: Mapping[str, float] | None = None,
+        executed_action: np.ndarray | None = None,
     ) -> None:
         """Append one frame. Cameras, objects, joints and plant-state presence must match
-        frame 0."""
+        frame 0; so must that of `executed_action` (what the station executed when it is not
+        `action`, the label: ``joint_action/executed``)."""
         images, depth = dict(images or {}), dict(depth or {})
         intrinsic_cv, extrinsic_cv = dict(intrinsic_cv or {}), dict(extrinsic_cv or {})
         first = len(self) == 0
@@ -323,6 +342,8 @@ class EpisodeRecorder:
             self._same(set(joint_positions or {}), set(self._joints), "joints")
             if (plant_state is None) != (not self._plant_state):
                 raise ValueError("plant_state must be given for every frame or for none")
+            if (executed_action is None) != (not self._executed):
+                raise ValueError("executed_action must be given for every frame or for none")
         for cam in depth:
             if cam not in images:
                 raise ValueError(f"depth for camera {cam!r} without its RGB image")
@@ -331,6 +352,9 @@ class EpisodeRecorder:
                 raise ValueError(f"camera {cam!r}: image given without intrinsic_cv/extrinsic_cv")
         frame = {
             "action": _vec(action, self._size, "action"),
+            "executed": None
+            if executed_action is None
+            else _vec(executed_action, self._size, "executed_action"),
             "joint_state": _vec(joint_state, self._size, "joint_state"),
             "left": _vec(left_endpose, (7,), "left_endpose"),
             "right": _vec(right_endpose, (7,), "right_endpose"),
@@ -346,6 +370,8 @@ class EpisodeRecorder:
         }
         # all validated: commit the frame
         self._action.append(frame["action"])
+        if frame["executed"] is not None:
+            self._executed.append(frame["executed"])
         self._joint_state.append(frame["joint_state"])
         self._endpose["left"].append(frame["left"])
         self._endpose["right"].append(frame["right"])
@@ -362,8 +388,15 @@ class EpisodeRecorder:
         if plant_state is not None:
             self._plant_state.append(np.array(plant_state, dtype=np.float64).ravel())
 
-    def capture(self, sim: Simulation, action: np.ndarray, depth: bool = False) -> None:
-        """Record the simulation's current observation (call before ``sim.step(action)``)."""
+    def capture(
+        self,
+        sim: Simulation,
+        action: np.ndarray,
+        depth: bool = False,
+        executed: np.ndarray | None = None,
+    ) -> None:
+        """Record the simulation's current observation (call before ``sim.step(action)``);
+        `executed`: the action the station gets instead of `action` (which stays the label)."""
         if sim.station.layout.arm_joints != self.layout.arm_joints:
             raise ValueError(
                 f"this recorder's layout is {self.layout.describe()}, the robot's "
@@ -383,6 +416,7 @@ class EpisodeRecorder:
             extrinsic_cv={c: sim.extrinsic_cv(c) for c in cams},
             plant_state=sim.station.plant.GetPositionsAndVelocities(sim.plant_context),
             joint_positions=sim.joint_positions(),
+            executed_action=executed,
         )
 
     @property
@@ -488,6 +522,8 @@ class EpisodeRecorder:
     def _write_robot(self, f: h5py.File) -> None:
         action, layout = np.stack(self._action), self.layout
         f["joint_action/vector"] = action
+        if self._executed:
+            f["joint_action/executed"] = np.stack(self._executed)
         for side in SIDES:
             f[f"joint_action/{side}_arm"] = action[:, layout.arm(side)]
             f[f"joint_action/{side}_gripper"] = action[:, layout.gripper(side)]
@@ -512,7 +548,7 @@ class EpisodeRecorder:
         f["stage_index"] = stage_index_from_rows(rows)
         if self._plant_state:
             f["stages/initial_state"] = np.stack(self._plant_state)[starts]
-        actions = np.stack(self._action)
+        actions = np.stack(self._executed or self._action)  # in effect: what the station ran
         before = self.initial_action if self.initial_action is not None else actions[0]
         f["stages/initial_action"] = np.stack([actions[s - 1] if s > 0 else before for s in starts])
 
@@ -539,6 +575,20 @@ class Episode:
     initial_action: np.ndarray | None = None
     #: (T,) joint position per sliding object (empty for scenes without one, and old files).
     joints: dict[str, np.ndarray] = field(default_factory=dict)
+    #: (T, A) the actions the station executed, where they differ from the labels
+    #: ``joint_action`` (episodes generated with action noise); None otherwise.
+    executed_action: np.ndarray | None = None
+
+    @property
+    def replay_action(self) -> np.ndarray:
+        """The actions that reproduce the episode: the executed ones where recorded, else the
+        labels ``joint_action``."""
+        return self.joint_action if self.executed_action is None else self.executed_action
+
+    @property
+    def action_noise(self) -> float:
+        """The action-noise level (rad) the episode was generated with (0: none)."""
+        return float(self.attrs.get("action_noise", 0.0))
 
     @property
     def length(self) -> int:
@@ -677,6 +727,7 @@ def read_episode(path: str | Path, images: bool = True) -> Episode:
             initial_state=get("stages/initial_state", optional=True),
             initial_action=get("stages/initial_action", optional=True),
             joints={n: f[f"joints/{n}/position"][()] for n in f.get("joints", {})},
+            executed_action=get("joint_action/executed", optional=True),
         )
 
 

@@ -11,7 +11,9 @@ right gripper]``, the recording robot's layout as in the episode file: A = 14 fo
 pair; the dataset's ``robot_type`` is the embodiment)::
 
     observation.state          (A,)   measured joint state
-    action                     (A,)   commanded joint targets and gripper openings
+    action                     (A,)   commanded joint targets and gripper openings (the
+                                      expert's label: of an episode generated with action
+                                      noise, ``joint_action/vector``, not what was executed)
     observation.endpose        (14,)  left TCP xyz + quaternion wxyz, then right
     stage_index                (1,)   int64, the BiCoord stage the frame belongs to
     observation.images.{head,left,right}   videos (H, W, 3) (not with ``images=False``)

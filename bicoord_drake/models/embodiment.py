@@ -238,8 +238,17 @@ class Embodiment(BaseModel):
     left_base: Pose
     right_base: Pose
     home: tuple[float, ...] = Field(
-        description="home joint angles of one arm; both arms use the same angles (their bases "
-        "face the same way, so a home in the arm's own vertical plane is mirror-symmetric)"
+        description="home joint angles of one arm in its own vertical plane; both arms start "
+        "from these angles (their bases face the same way), turned by `home_spread`"
+    )
+    home_spread: float = Field(
+        0.0,
+        ge=0.0,
+        le=0.5,
+        description="rad: each arm's first joint (the vertical one at the base) turned outward "
+        "from `home` by this angle, the left arm's up and the right arm's down, so the two homes "
+        "stay mirror images and the TCPs start as far apart as the reference robot's "
+        "(docs/metrics.md, 'start distance'); 0: both arms at `home`",
     )
     home_opening: float = Field(1.0, ge=0, le=1)
     closed_form_ik: Literal["spherical_wrist_6r"] | None = Field(
@@ -261,9 +270,13 @@ class Embodiment(BaseModel):
     def _home_valid(self) -> Embodiment:
         if len(self.home) != len(self.arm.joints):
             raise ValueError(f"home must have {len(self.arm.joints)} joint angles")
-        q = np.asarray(self.home)
-        if np.any(q < self.arm.lower) or np.any(q > self.arm.upper):
-            raise ValueError("home configuration is outside the joint limits")
+        for side in SIDES:
+            q = self.home_of(side)
+            if np.any(q < self.arm.lower) or np.any(q > self.arm.upper):
+                raise ValueError(
+                    f"the {side} arm's home (home turned by home_spread) is outside the joint "
+                    "limits"
+                )
         return self
 
     @model_validator(mode="after")
@@ -282,11 +295,17 @@ class Embodiment(BaseModel):
     def base_pose(self, side: Side) -> Pose:
         return self.left_base if side == "left" else self.right_base
 
+    def home_of(self, side: Side) -> np.ndarray:
+        """One arm's home joint angles: `home` with the first joint turned outward by
+        `home_spread` (up for the left arm, down for the right)."""
+        q = np.array(self.home, dtype=float)
+        q[0] += self.home_spread if side == "left" else -self.home_spread
+        return q
+
     def home_action(self) -> np.ndarray:
         """The action ``[left q, left opening, right q, right opening]`` (2 (n + 1) numbers for
         n arm joints: 14 for the ViperX pair) holding both arms at home."""
-        q = list(self.home) + [self.home_opening]
-        return np.array(q + q, dtype=float)
+        return np.concatenate([np.append(self.home_of(side), self.home_opening) for side in SIDES])
 
     def with_pad_modulus(self, modulus: float | None) -> Embodiment:
         """This robot with its finger pads' hydroelastic modulus (Pa) set to `modulus` (a

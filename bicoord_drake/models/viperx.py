@@ -36,10 +36,15 @@ XM430_STALL = 4.1
 #: Interbotix's vx300s description caps every joint at pi rad/s). 3.14 is the value the experts'
 #: plans were made with.
 ARM_SPEED = 3.14
+#: Home: each arm in its own vertical plane, its waist then turned this far outward (rad), so
+#: the TCPs start 0.606 m apart - the reference robot's start distance (aloha-agilex in RoboTwin
+#: 2.0 / BiCoord-Bench; the evidence is in docs/metrics.md) - instead of the bases' 0.50 m.
+#: Solved from the forward kinematics (tests/models/test_home_start_distance.py checks it).
+HOME_SPREAD = 0.2188
 
 
 def aloha_viperx() -> Embodiment:
-    """Two ViperX 300s arms behind the table, 0.5 m apart, facing +y.
+    """Two ViperX 300s arms behind the table, bases 0.5 m apart, facing +y.
 
     Joint offsets, axes, limits, masses and principal inertias follow the public ViperX 300s
     model; collision and visual geometry are this project's own primitives.
@@ -261,6 +266,7 @@ def aloha_viperx() -> Embodiment:
         left_base=Pose(xyz=(-0.25, -0.42, 0.75), rpy=(0, 0, half_pi)),
         right_base=Pose(xyz=(0.25, -0.42, 0.75), rpy=(0, 0, half_pi)),
         home=(0.0, -0.96, 1.16, 0.0, 0.4, 0.0),
+        home_spread=HOME_SPREAD,
         closed_form_ik="spherical_wrist_6r",
         # the right arm mirrors the waist, the forearm roll and the wrist rotation
         reach_pose=((-0.35, 0.05, 0.35, 0.0, 1.0, 0.0), (0.35, 0.05, 0.35, 0.0, 1.0, 0.0)),

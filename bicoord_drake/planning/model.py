@@ -190,7 +190,7 @@ class PlanningModel:
         self.arm_slices = {"left": slice(0, n), "right": slice(n, 2 * n)}
         self.lower = np.tile(arm.lower, 2)
         self.upper = np.tile(arm.upper, 2)
-        self.home = np.tile(np.asarray(self.embodiment.home, dtype=float), 2)
+        self.home = np.concatenate([self.embodiment.home_of(side) for side in SIDES])
         self.tcp_frames = {side: plant.GetFrameByName("tcp", self.arms[side]) for side in SIDES}
         #: The hand's extent in the TCP frame (``ArmSpec.hand_boxes``, fingers open).
         self.hand_boxes = arm.hand_boxes()

@@ -77,10 +77,10 @@ def reachable_down(
     tcp = plant.GetFrameByName("tcp", inst)
     n = embodiment.num_arm_joints
     open_ = embodiment.arm.gripper.finger_max
-    home = np.concatenate([embodiment.home, [open_, open_]])
-    # every arm at home with open fingers; this arm's entries of the position vector
+    # every arm at its home with open fingers; this arm's entries of the position vector
     q_home = np.zeros(plant.num_positions())
-    for other in arms.values():
+    for arm_side, other in arms.items():
+        home = np.concatenate([embodiment.home_of(arm_side), [open_, open_]])
         plant.SetPositionsInArray(other, home, q_home)
     mine = plant.GetPositionsFromArray(inst, np.arange(plant.num_positions())).astype(int)
     lower, upper = plant.GetPositionLowerLimits()[mine], plant.GetPositionUpperLimits()[mine]

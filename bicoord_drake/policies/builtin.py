@@ -23,7 +23,10 @@ def _require_qpos(env: Env, name: str) -> None:
 
 
 class ReplayPolicy:
-    """The recorded ``joint_action`` of the demonstration the environment was reset from.
+    """The recorded actions of the demonstration the environment was reset from: those the
+    station executed (``joint_action/executed`` of an episode generated with action noise,
+    else ``joint_action``: :attr:`~bicoord_drake.data.episode.Episode.replay_action`), so the
+    replay reproduces it.
 
     From the start frame of the reset's stage; in a stage rollout only that stage's frames. When
     the recording runs out it holds the last action.
@@ -44,7 +47,7 @@ class ReplayPolicy:
         start, end = env.start_frame, ep.length
         if env.stage is not None:
             end = int(ep.stages[env.stage][1])
-        self._actions = np.asarray(ep.joint_action[start:end], dtype=float)
+        self._actions = np.asarray(ep.replay_action[start:end], dtype=float)
         self._hold = np.asarray(env.action, dtype=float)
         self._t = 0
 

@@ -13,7 +13,14 @@ each rollout at the start of stage k of its demonstration (see :mod:`bicoord_dra
 
 A rollout ends at success (in a stage rollout: when stage k counts) or at the step limit. A
 policy that raises, or returns an invalid action (not executed), ends its rollout as a failure;
-the error and traceback go to the report and evaluation continues with the next seed.
+the error and traceback go to the report and evaluation continues with the next seed. A rollout
+also ends early, as a failure, when nothing can be saved: a task object has left the table (on
+the floor or outside the workspace, :mod:`bicoord_drake.env`; ``early_stop``, on by default) or
+the physics diverged; the stages it completed before count as usual (persistent ones as they
+stand when it ends). Nothing else ends a rollout early: a slow policy keeps its step limit.
+Every failed rollout has its reason (``failure``: ``step_limit``, ``object_left_table``,
+``physics_diverged``, ``invalid_action``, ``policy_raised``, ``simulation_raised``) and the
+report counts them (``failures``).
 
 Scores: SR = successes / N; SSR = (1/N) sum_i sum_j s_j c_ij with c_ij the stage's credit
 (partial credit included: cook 0.25 per roll, exchange_mics 0.5 per mic), the mean of the
@@ -51,6 +58,7 @@ from bicoord_drake.policies import action_size_of, close_policy, load_policy_for
 from bicoord_drake.runner.evaluate_parallel import run_parallel
 from bicoord_drake.runner.rollouts import (
     DIVERGED,
+    OBJECT_LEFT_TABLE,
     EvaluateConfig,
     ExpertCheck,
     RolloutResult,
@@ -102,6 +110,17 @@ class EvaluationReport:
     def n(self) -> int:
         return len(self.rollouts)
 
+    @property
+    def failures(self) -> dict[str, int]:
+        """How many rollouts failed for each reason (:data:`~bicoord_drake.runner.rollouts.
+        FAILURES`), most common first."""
+        counts: dict[str, int] = {}
+        for r in self.rollouts:
+            if not r.success:
+                reason = r.failure or "unknown"
+                counts[reason] = counts.get(reason, 0) + 1
+        return dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
+
     def to_json(self) -> dict[str, Any]:
         return {
             "task": self.task,
@@ -116,6 +135,7 @@ class EvaluationReport:
                 for s, c in zip(self.stages, self.stage_completion, strict=True)
             ],
             "coordination": self.coordination,
+            "failures": self.failures,
             "skipped": self.skipped,
             "expert_failures": self.expert_failures,
             "rollouts": [r.to_json() for r in self.rollouts],
@@ -165,11 +185,20 @@ class EvaluationReport:
             )
             for f in self.expert_failures:
                 lines.append(f"  expert failed seed {f['seed']}: {f['reason']}")
+        if self.failures:
+            lines.append("failures: " + ", ".join(f"{why} {n}" for why, n in self.failures.items()))
         diverged = sum(1 for r in self.rollouts if (r.error or "").startswith(DIVERGED))
         if diverged:
             lines.append(
                 f"{diverged} of {len(self.rollouts)} rollouts ended when the physics diverged "
                 "(counted as failures, with the stages done before)"
+            )
+        lost = self.failures.get(OBJECT_LEFT_TABLE, 0)
+        if lost:
+            lines.append(
+                f"{lost} of {len(self.rollouts)} rollouts ended early when a task object left "
+                "the table (counted as failures, with the stages done before; --no-early-stop "
+                "runs them to the step limit)"
             )
         for r in self.rollouts:
             if r.error:

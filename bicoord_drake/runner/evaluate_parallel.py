@@ -55,7 +55,7 @@ class RolloutOutcome:
 
 
 _WORKER: dict[str, Any] = {}
-_ENV_FIELDS = {"policy", "action_mode", "step_limit"}
+_ENV_FIELDS = {"policy", "action_mode", "step_limit", "early_stop"}
 """With the scenario but its seed range and the rollout's station, the settings a worker's
 environment and policy are built with: another value builds anew."""
 

@@ -59,25 +59,37 @@ from bicoord_drake.data.episode import (
     write_manifest,
 )
 from bicoord_drake.episode_setup import EpisodeSetup, assemble
-from bicoord_drake.models.layout import default_embodiment
+from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.models.layout import ActionLayout, default_embodiment
 from bicoord_drake.models.scene import Scene
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.runner.backends import WorkerLost, make_backend, quiet_worker
 from bicoord_drake.runner.stopwatch import Stopwatch
-from bicoord_drake.scenario import GENERATION_DEFAULTS, RunConfig
+from bicoord_drake.scenario import (
+    GENERATION_DEFAULTS,
+    ActionNoise,
+    RunConfig,
+    action_noise_draw,
+    parse_action_noise,
+)
 from bicoord_drake.sim.frame_renderer import FrameRenderer
 from bicoord_drake.stages import WorldState
 from bicoord_drake.tasks import get_task
 from bicoord_drake.tasks.base import Task, step_limit_at
 
 
-def default_config_name(randomize: bool = False, embodiment: str | None = None) -> str:
+def default_config_name(
+    randomize: bool = False, embodiment: str | None = None, noisy: bool = False
+) -> str:
     """The settings directory under ``<out>/<task>/``: ``default`` or ``randomized`` for the
-    default robot, ``<embodiment>`` or ``<embodiment>_randomized`` for another one."""
+    default robot, ``<embodiment>`` or ``<embodiment>_randomized`` for another one; with
+    action noise (`noisy`) ``_noisy`` after it."""
     name = embodiment or default_embodiment()
     if name == default_embodiment():
-        return "randomized" if randomize else "default"
-    return f"{name}_randomized" if randomize else name
+        base = "randomized" if randomize else "default"
+    else:
+        base = f"{name}_randomized" if randomize else name
+    return f"{base}_noisy" if noisy else base
 
 
 class GenerateConfig(RunConfig):
@@ -111,11 +123,16 @@ class GenerateConfig(RunConfig):
     @classmethod
     def _default_config_name(cls, data: Any) -> Any:
         """No config name: ``default``, or the robot's name for another robot than the
-        default (scripts/generate.py also names randomized runs apart)."""
+        default, ``_noisy`` after it with action noise (scripts/generate.py also names
+        randomized runs apart)."""
         data = cls._fold(data)
         if isinstance(data, dict) and data.get("config_name") is None:
             embodiment = data["scenario"].get("embodiment")
-            return {**data, "config_name": default_config_name(False, embodiment)}
+            try:
+                noisy = parse_action_noise(data["scenario"].get("action_noise", 0.0)) != 0.0
+            except ValueError:
+                noisy = False  # the scenario's validation reports it
+            return {**data, "config_name": default_config_name(False, embodiment, noisy)}
         return data
 
     @model_validator(mode="after")
@@ -159,6 +176,8 @@ class GenerateConfig(RunConfig):
             settings["randomize"] = True
         if self.split != "seen":
             settings["split"] = self.split
+        if self.scenario.noisy:
+            settings["action_noise"] = self.scenario.to_dict()["action_noise"]
         station = _other_station_settings(self.station)
         if station != _other_station_settings(StationConfig()):
             settings["station"] = station
@@ -203,9 +222,48 @@ class EpisodeResult:
     instruction: str = ""
     scene: Scene | None = None
     timings: dict[str, float] = field(default_factory=dict)
+    #: The action-noise level (rad) the expert's actions were executed with (0: none).
+    action_noise: float = 0.0
 
 
-def run_expert(setup: EpisodeSetup, depth: bool = False) -> EpisodeResult:
+@dataclass
+class NoisyExecution:
+    """DART's noisy execution (Laskey et al. 2017): each action the expert commands is
+    executed with zero-mean Gaussian noise of standard deviation `level` (rad) on every arm
+    joint target, clipped to the joint limits; the gripper openings are executed as commanded.
+    The expert's action stays the label. `rng` is the episode's noise generator
+    (:func:`~bicoord_drake.scenario.action_noise_draw`)."""
+
+    level: float
+    rng: np.random.Generator
+    arm: np.ndarray  # the arm joints' indices in an action
+    lower: np.ndarray  # their limits, in the same order
+    upper: np.ndarray
+
+    @classmethod
+    def for_episode(
+        cls, setting: ActionNoise, seed: int, layout: ActionLayout, lower: Any, upper: Any
+    ) -> NoisyExecution:
+        """The noise of episode `seed` of a run set to `setting` (a level, or a range to draw
+        it from), for a robot of `layout` whose arms' joint limits are `lower`, `upper`
+        (one arm's, (n,))."""
+        level, rng = action_noise_draw(setting, seed)
+        arm = np.concatenate([np.arange(layout.action_size)[layout.arm(s)] for s in SIDES])
+        lower, upper = (np.tile(np.asarray(b, dtype=float), len(SIDES)) for b in (lower, upper))
+        return cls(level, rng, arm, lower, upper)
+
+    def apply(self, action: np.ndarray) -> np.ndarray:
+        """The action to execute for the expert's `action` (a new array; one draw per arm
+        joint, every call)."""
+        executed = np.array(action, dtype=np.float64)
+        q = executed[self.arm] + self.rng.normal(0.0, self.level, self.arm.size)
+        executed[self.arm] = np.clip(q, self.lower, self.upper)
+        return executed
+
+
+def run_expert(
+    setup: EpisodeSetup, depth: bool = False, action_noise: ActionNoise = 0.0
+) -> EpisodeResult:
     """Run the expert of `setup`'s episode in physics and verify every stage.
 
     The episode is assembled from `setup` (:func:`~bicoord_drake.episode_setup.assemble`:
@@ -218,6 +276,14 @@ def run_expert(setup: EpisodeSetup, depth: bool = False) -> EpisodeResult:
     :meth:`GenerateConfig.episode_setup`), the expert check of an evaluation the setup of its
     rollouts. The expert gets the task's step limit at the control rate
     (:func:`~bicoord_drake.tasks.base.step_limit_at`).
+
+    With `action_noise` (a level in rad, or a range to draw the episode's level from; the
+    scenario's ``action_noise``), the station executes each action with noise on the arm joint
+    targets (:class:`NoisyExecution`, drawn from the seed): the recording keeps the expert's
+    action as the label and the executed one beside it, the stage monitor watches what was
+    executed, and the expert plans on from the measured world at its usual boundaries
+    (:func:`~bicoord_drake.tasks.base.follow`). At 0 nothing changes: no noise generator, and
+    the same actions bit for bit.
 
     Any failure of the seed (planning, a stage not verified, an annotation that cannot be made)
     is returned with its reason."""
@@ -232,8 +298,12 @@ def run_expert(setup: EpisodeSetup, depth: bool = False) -> EpisodeResult:
             layout=episode.layout,
         )
         instruction = setup.instruction()
-    action = episode.embodiment.home_action()
+    action = executed = episode.embodiment.home_action()
     limit = step_limit_at(task, station_config.control_rate)
+    noise = None
+    if action_noise:
+        arm = episode.embodiment.arm
+        noise = NoisyExecution.for_episode(action_noise, seed, episode.layout, arm.lower, arm.upper)
 
     def failed(reason: str) -> EpisodeResult:
         return EpisodeResult(seed, False, reason, timings=clock.seconds())
@@ -245,19 +315,21 @@ def run_expert(setup: EpisodeSetup, depth: bool = False) -> EpisodeResult:
                 next_action = next(expert, None)
             if next_action is None:
                 break
-            action = next_action
+            action = executed = next_action
             if len(recorder) >= limit:
                 return failed(f"step_limit: expert exceeded {limit} steps")
+            if noise is not None:
+                executed = noise.apply(action)
             with clock("record"):
-                recorder.capture(sim, action)
+                recorder.capture(sim, action, executed=None if noise is None else executed)
             with clock("physics"):
-                sim.step(action)
+                sim.step(executed)
             with clock("monitor"):
-                monitor.update(WorldState.capture(sim, action, scene))
+                monitor.update(WorldState.capture(sim, executed, scene))
     except PlanningError as err:
         return failed(f"planning: {err}")
     with clock("monitor"):
-        monitor.finish(WorldState.capture(sim, action, scene))
+        monitor.finish(WorldState.capture(sim, executed, scene))
     if not monitor.success:
         stages = zip(monitor.stages, monitor.completed(), strict=True)
         return failed(f"stage_not_verified: {', '.join(s.subgoal for s, ok in stages if not ok)}")
@@ -275,6 +347,7 @@ def run_expert(setup: EpisodeSetup, depth: bool = False) -> EpisodeResult:
         instruction=instruction,
         scene=scene,
         timings=clock.seconds(),
+        action_noise=0.0 if noise is None else noise.level,
     )
 
 
@@ -552,7 +625,9 @@ def produce_episode(config: GenerateConfig, seed: int, staging: str | None) -> S
     quiet_worker(config.verbose)
     task = get_task(config.task)
     try:
-        result = run_expert(config.episode_setup(seed), depth=config.depth)
+        result = run_expert(
+            config.episode_setup(seed), depth=config.depth, action_noise=config.action_noise
+        )
     except Exception as exc:  # noqa: BLE001 - recorded in the manifest with the traceback's tail
         result = EpisodeResult(seed, False, f"crashed: {format_failure(exc)}")
     outcome = SeedOutcome(
@@ -592,6 +667,7 @@ def _save(
         config=config.record(),
         scene=result.scene,
         scenario=config.scenario.for_episode(task.name, result.seed).to_yaml(),
+        extra={"action_noise": result.action_noise} if result.action_noise else {},
     )
     return save_episode(
         layout,
@@ -801,14 +877,19 @@ def _summary(layout: EpisodeLayout, manifest: Manifest) -> GenerateSummary:
 
 def compare_regenerated(episode: str | Path, root: str | Path, seed: int) -> str:
     """One line: whether the episode of `seed` generated under `root` has the actions of the
-    `episode` file it was made from, bit for bit."""
+    `episode` file it was made from, bit for bit (the labels, and the executed actions of an
+    episode with action noise)."""
     root = Path(root)
     kept = [e for e in read_manifest(root).episodes if e.seed == seed and e.success]
     if not kept:
         return f"seed {seed} was not kept: nothing to compare with {episode}"
     made = read_episode(root / "data" / f"episode{kept[0].index}.hdf5", images=False)
     recorded = read_episode(episode, images=False)
-    if np.array_equal(made.joint_action, recorded.joint_action):
+    same_executed = (made.executed_action is None) == (recorded.executed_action is None) and (
+        made.executed_action is None
+        or np.array_equal(made.executed_action, recorded.executed_action)
+    )
+    if np.array_equal(made.joint_action, recorded.joint_action) and same_executed:
         return f"{made.path}: the actions of {episode}, bit for bit ({made.length} steps)"
     return (
         f"{made.path}: the actions differ from {episode} ({made.length} steps, recorded "

@@ -32,7 +32,7 @@ from bicoord_drake.data.episode import (
     write_json,
     write_video,
 )
-from bicoord_drake.env import EVAL_SEED_START, Env, InvalidActionError
+from bicoord_drake.env import EVAL_SEED_START, OBJECT_LEFT_TABLE, Env, InvalidActionError
 from bicoord_drake.episode_setup import EpisodeSetup
 from bicoord_drake.models.appearance import Split
 from bicoord_drake.models.layout import default_embodiment
@@ -50,6 +50,20 @@ from bicoord_drake.tasks.base import Task
 
 #: How a rollout whose physics diverged is reported (the start of its error).
 DIVERGED = "physics diverged"
+#: Why a rollout failed (:attr:`RolloutResult.failure`): it ran to its step limit, a task object
+#: left the table (an early stop, ``EvaluateConfig.early_stop``), the physics diverged, the
+#: policy returned an invalid action, or the policy or the simulation raised.
+STEP_LIMIT = "step_limit"
+PHYSICS_DIVERGED = "physics_diverged"
+INVALID_ACTION = "invalid_action"
+FAILURES = (
+    STEP_LIMIT,
+    OBJECT_LEFT_TABLE,
+    PHYSICS_DIVERGED,
+    INVALID_ACTION,
+    "policy_raised",
+    "simulation_raised",
+)
 
 
 class EvaluateConfig(RunConfig):
@@ -70,6 +84,11 @@ class EvaluateConfig(RunConfig):
     action_mode: Literal["qpos", "endpose"] = "qpos"
     step_limit: int | None = Field(
         None, ge=1, description="override the task's step limit (default: at the control rate)"
+    )
+    early_stop: bool = Field(
+        True,
+        description="end a rollout, as a failure, once a task object has left the table "
+        "(bicoord_drake.env); off: every rollout that does not succeed runs its step limit",
     )
     expert_check: bool = True
     max_tries: int = Field(0, ge=0, description="seeds to try at most (0: 3 x episodes)")
@@ -125,7 +144,9 @@ class EvaluateConfig(RunConfig):
 
 @dataclass
 class RolloutResult:
-    """One rollout: outcome, per-stage completion, and the error if it failed by raising."""
+    """One rollout: outcome, per-stage completion, and why it failed: `failure` (one of
+    :data:`FAILURES`; None for a success) and `error` (what happened, for every failure but the
+    step limit; its traceback when something raised)."""
 
     seed: int
     success: bool
@@ -136,6 +157,7 @@ class RolloutResult:
     start_stage: int = 0
     episode: str | None = None
     error: str | None = None
+    failure: str | None = None
     traceback: str | None = None
     video: str | None = None
     seconds: float = 0.0
@@ -160,12 +182,14 @@ def rollout(
     stage: int | None = None,
     video: str | Path | None = None,
 ) -> RolloutResult:
-    """Run one rollout of `policy` in `env` until done; never raises for policy faults."""
+    """Run one rollout of `policy` in `env` until done (success, the step limit, or an early
+    stop of `env`: a task object lost, the physics diverged); never raises for policy
+    faults."""
     t0 = time.perf_counter()
     obs = env.reset(seed, stage=stage, episode=episode)
     frames: list[bytes] = []
     left, right, grippers = [], [], []
-    error = tb = None
+    error = tb = failure = None
 
     def record(o: dict[str, Any]) -> None:
         if video is not None and "head_camera" in o:
@@ -188,15 +212,21 @@ def rollout(
             record(obs)
     except InvalidActionError as exc:
         error, tb = f"invalid action at step {env.steps}: {exc}", traceback.format_exc()
+        failure = INVALID_ACTION
     except PhysicsDivergedError as exc:
         error, tb = f"{DIVERGED} at step {env.steps}: {exc}", traceback.format_exc()
+        failure = PHYSICS_DIVERGED
     except Exception as exc:  # a fault ends this rollout only
         error = f"{who} raised at step {env.steps}: {type(exc).__name__}: {exc}"
-        tb = traceback.format_exc()
+        tb, failure = traceback.format_exc(), f"{who}_raised"
+    if error is None and env.failure is not None:  # an early stop: a task object lost
+        error, failure = env.failure, OBJECT_LEFT_TABLE
     info = env.info()
     target = env.stage
     done = info["completed"][target] if target is not None else info["success"]
     success = bool(done) and error is None
+    if not success and failure is None:
+        failure = STEP_LIMIT
     result = RolloutResult(
         seed=int(env.seed),
         success=success,
@@ -207,6 +237,7 @@ def rollout(
         start_stage=env.start_stage,
         episode=str(episode.path) if episode is not None else None,
         error=error,
+        failure=failure,
         traceback=tb,
         left_xyz=np.array(left).reshape(-1, 3),
         right_xyz=np.array(right).reshape(-1, 3),
@@ -232,7 +263,12 @@ def make_evaluation_env(
     setup = config.episode_setup(task, seed, fps)
     if station is not None:
         setup = setup.replace(station=station)
-    return Env(setup, action_mode=config.action_mode, step_limit=config.step_limit)
+    return Env(
+        setup,
+        action_mode=config.action_mode,
+        step_limit=config.step_limit,
+        early_stop=config.early_stop,
+    )
 
 
 def rollout_station(config: EvaluateConfig, episode: Episode) -> StationConfig:

@@ -56,11 +56,13 @@ CLEAR_COLOR = (0.92, 0.93, 0.95)
 #: The OpenGL platforms this process's engines have used so far ("egl": VTK's default, "glx").
 _platforms: set[str] = set()
 
-#: Head camera: above and behind the robot, looking down at the table centre (1 m away) from
-#: x = 0. With the default 42 deg vertical FOV (`CameraConfig.head_fov_y_deg`; 54 deg
+#: Head camera: above and behind the robot, looking down at the table centre (1.075 m away;
+#: 1 m until the ViperX's home was widened to the reference's 0.606 m start distance, when its
+#: left fingers came within 7 px of the image's edge) from x = 0. With the default 42 deg
+#: vertical FOV (`CameraConfig.head_fov_y_deg`; 54 deg
 #: horizontal at 320x240, like RoboTwin's D435 head camera) both grippers at home and every task
 #: object are in the image (tests/sim/test_head_camera_view.py checks it by projection).
-HEAD_EYE = (0.0, -0.60, 1.55)
+HEAD_EYE = (0.0, -0.645, 1.61)
 HEAD_DIRECTION = (0.0, 0.6, -0.8)
 #: Wrist camera mount in the gripper link frame (x forward along the fingers, z up at home):
 #: above the palm, looking past the fingertips at the workspace ahead.

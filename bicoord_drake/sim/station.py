@@ -96,7 +96,7 @@ def add_robot(plant: MultibodyPlant, embodiment: Embodiment) -> dict[str, ModelI
         (inst,) = Parser(plant).AddModelsFromString(arm_sdf(embodiment, f"{side}_arm"), "sdf")
         base = plant.GetFrameByName(embodiment.arm.base.name, inst)
         plant.WeldFrames(plant.world_frame(), base, rigid_transform(embodiment.base_pose(side)))
-        for joint, q in zip(embodiment.arm.joint_names, embodiment.home, strict=True):
+        for joint, q in zip(embodiment.arm.joint_names, embodiment.home_of(side), strict=True):
             plant.GetJointByName(joint, inst).set_default_angle(q)
         for finger in ("left_finger_joint", "right_finger_joint"):
             plant.GetJointByName(finger, inst).set_default_translation(

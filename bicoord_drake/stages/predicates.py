@@ -395,15 +395,23 @@ def stands_in(
     return Predicate(check, f"stands_in({obj!r}, {container!r}, gap={gap})")
 
 
-def released(obj: str, open_at: float = OPEN_AT) -> Predicate:
+def released(obj: str, open_at: float = OPEN_AT, tools: Sequence[str] = ()) -> Predicate:
     """Both grippers commanded open (opening >= `open_at`) and no robot body (finger, palm,
-    wrist, link) touching `obj`."""
+    wrist, link) touching `obj`. A task whose arm keeps a tool in hand to the end names it in
+    `tools`: a gripper closed on one of them (its fingers touching it) counts as having let go
+    of `obj` - it still may not touch `obj`."""
+    tools = tuple(tools)
+
+    def let_go(s: WorldState, side: str) -> bool:
+        if s.opening(side) >= open_at:
+            return True
+        return any(side in s.fingers_touching(tool) for tool in tools)
 
     def check(s: WorldState) -> bool:
-        opened = all(s.opening(side) >= open_at for side in SIDES)
-        return opened and not s.touching(obj)
+        return all(let_go(s, side) for side in SIDES) and not s.touching(obj)
 
-    return Predicate(check, f"released({obj!r})")
+    label = f"released({obj!r})" if not tools else f"released({obj!r}, tools={list(tools)})"
+    return Predicate(check, label)
 
 
 def held_by(obj: str, side: str = "any", closed_below: float = OPEN_AT) -> Predicate:

@@ -29,7 +29,7 @@ expert's actions and the expert reads privileged state through a read-only :clas
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
@@ -48,6 +48,9 @@ if TYPE_CHECKING:
 
 #: Fewest instruction paraphrases a task must provide (seen + unseen).
 MIN_INSTRUCTIONS = 10
+
+#: An axis-aligned box in world coordinates, ``((x, y, z) lower, (x, y, z) upper)`` in metres.
+Region = tuple[tuple[float, float, float], tuple[float, float, float]]
 
 
 class WorldView:
@@ -197,6 +200,15 @@ class Task(ABC):
         from bicoord_drake.planning.skills import SkillContext
 
         return SkillContext(view.planning_model(), speed=self.expert_speed, **settings)
+
+    def may_leave_table(self, scene: Scene) -> Mapping[str, tuple[Region, ...] | None]:
+        """Task objects that may be off the table without ending an evaluation rollout early
+        (``early_stop``, :class:`bicoord_drake.env.LostObjects`): name -> the world boxes
+        (:data:`Region`) its origin may be in below the table top or outside the workspace (a
+        bin on the floor beside the table), or None: anywhere (a tool the task's success no
+        longer needs once used, which a policy may drop). Default: none - any free object of
+        the scene on the floor or outside the workspace ends the rollout as a failure."""
+        return {}
 
     def object_count(self, scene: Scene) -> int:
         """ON: objects the task manipulates or attends to (default: the movable ones)."""

@@ -116,8 +116,9 @@ DROP_RINGS = (0.012, 0.022)
 #: Turn-taking zone around the holder (xy radius, m) and the lag (s).
 CLEAR_RADIUS = 0.12
 CLEAR_LAG = 0.2
-#: Where the second arm waits with its pen (TCP offset from the holder's centre, m).
-WAIT_AT = (0.2, 0.06, 0.2)
+#: Where the second arm waits with its pen (TCP offset from the holder's centre, m): within
+#: 0.16 m (x) of the holder, as the reference drops at x = +-0.16 (TASKS.md section 5).
+WAIT_AT = (0.16, 0.06, 0.2)
 #: Seconds both arms hold still at the end (the pens must be seen at rest for 0.3 s).
 SETTLE = 0.67
 #: A pen counts as lifted this far (m) above where it lay.

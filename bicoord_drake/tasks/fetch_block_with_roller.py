@@ -80,10 +80,13 @@ ROLLER_COLOR = (0.84, 0.67, 0.45, 1.0)
 ROLLER_X, ROLLER_Y, ROLLER_YAW = (0.13, 0.17), (-0.21, -0.17), (-0.15, 0.15)
 #: Stage 2: the cube's centre within this xy distance (m) of the top plate's centre.
 XY_TOL = 0.02
-#: Expert: the right hand grips the roller this far (m) behind its middle
-#: (toward +x: the front part reaches through the tunnel, the hand stays outside), its pads
-#: this far above the roller's bottom at least; the roller is lifted this high after the grasp.
-GRIP_BACK = 0.09
+#: Expert: the right hand grips the roller this far (m) behind its middle (toward +x: the
+#: front part reaches through the tunnel, the hand stays outside), so at most GRIP_FROM_TIP
+#: from its pushing tip (TASKS.md section 11: at most 0.20 m; the longest roller's tip is
+#: 0.19 m from its middle); its pads this far above the roller's bottom at least; the roller
+#: is lifted this high after the grasp.
+GRIP_FROM_TIP = 0.20
+GRIP_BACK = GRIP_FROM_TIP - ROLLER_LENGTH[1] / 2
 TIP_CLEARANCE = 0.007
 LIFT = 0.08
 #: The push: the roller's axis this high above the table (below the cube's middle: the
@@ -102,8 +105,6 @@ PUSH_SPEED = 0.35
 #: ahead from the planned grasp (the real push, planned from the measured grasp, is up to
 #: ~0.7 s shorter); the rest is slowed to end with the real push.
 PUSH_MARGIN = 0.8
-#: Where the right hand lays the roller down again (centre; along x).
-PARK_XY = (0.17, -0.2)
 #: The cube is set on the plate with a slow release (s).
 RELEASE = 0.53
 #: Seconds both arms hold still at the end (the cube must be seen at rest 0.3 s).
@@ -122,11 +123,11 @@ class FetchBlockWithRoller(Task):
     Meanwhile the left arm comes to the pregrasp above where the cube will come out (its
     way there timed to end as the push does) and takes the cube from there, with the grasp
     its hand is already turned for. Then both arms work at once: the right draws the roller
-    back out of the tunnel, lays it down and retreats, while the left picks the cube and
-    sets it on the middle of the top plate.
+    back until its tip clears the shelf and keeps it in hand there, while the left picks the
+    cube and sets it on the middle of the top plate.
 
     Coordination: the task forces distance in stage 1 (the cube comes out at the tunnel's
-    left end, the roller is pushed from the right end, the right hand ~27 cm behind the
+    left end, the roller is pushed from the right end, the right hand ~19 cm behind the
     roller's tip) and a hand-off in time: the left cannot grasp before the cube is out,
     nor descend to it while the roller's tip is still within the arms' clearance.
 
@@ -145,8 +146,9 @@ class FetchBlockWithRoller(Task):
 
     Stages: (1) the cube's centre past x = -0.15 (out of the tunnel's left end), lying on a
     face on the table (transient); (2) the cube resting on the top plate, its centre within
-    2 cm of the plate's centre, lying on a face, both grippers open and no finger touching
-    it, at rest for 0.3 s (persistent).
+    2 cm of the plate's centre, lying on a face, released (each gripper open or closed on the
+    roller, which the right keeps in hand; no robot body touching the cube), at rest for 0.3 s
+    (persistent).
 
     Success: stage 2 holds when the rollout ends: the cube sits released and still on the
     middle of the shelf.
@@ -208,6 +210,11 @@ class FetchBlockWithRoller(Task):
             },
         )
 
+    def may_leave_table(self, scene: Scene) -> dict[str, None]:
+        # Success is the cube on the shelf: a roller a policy drops once the cube is out does
+        # not end its rollout early.
+        return {ROLLER: None}
+
     def object_count(self, scene: Scene) -> int:
         return len(scene.free_objects) + 1  # the cube, the roller and the shelf
 
@@ -217,7 +224,7 @@ class FetchBlockWithRoller(Task):
         on_shelf = all_of(
             rests_on(CUBE, SHELF, xy_tol=XY_TOL),
             on_a_face(CUBE),
-            released(CUBE),
+            released(CUBE, tools=[ROLLER]),  # the right keeps the roller in hand
             settled([CUBE]),
         )
         return [
@@ -232,7 +239,7 @@ class FetchBlockWithRoller(Task):
             Stage(
                 "put it on the shelf",
                 "pick the cube, place it on the middle of the top plate",
-                "draw the roller back, lay it down, stay clear",
+                "draw the roller back until its tip clears the shelf, keep holding it",
                 0.5,
                 on_shelf,
                 "persistent",
@@ -263,14 +270,16 @@ class FetchBlockWithRoller(Task):
         rest = slowed_after(ctx, rest, 0, push.num_steps)
         ctx.q = ctx.with_arm("left", rest.q[-1])
         yield from run(merge(ctx, rest, push, stretch=False, ignore=[CUBE]))
-        # ---- stage 2: right draws the roller back out and lays it down, left picks the cube
-        # and sets it on the plate (the arm leaving is planned first). Past the walls nothing
-        # keeps the cube square: turned, it can leave no room for a finger by the shelf, and
-        # then the roller pushes it on before this is planned again.
+        # ---- stage 2: right levels the roller off the pushing line (alone, as a track: its
+        # hand may graze the table there), then draws it back out and keeps it in hand while
+        # left picks the cube and sets it on the plate (the arm leaving is planned first).
+        # Past the walls nothing keeps the cube square: turned, it can leave no room for a
+        # finger by the shelf, and then the roller pushes it on before this is planned again.
         for nudge in range(NUDGES + 1):
+            yield from run(combine(hold(ctx, "left", 0), level_roller(ctx)))
             try:
                 with ctx.transaction():
-                    left, right = _fetch_and_clear(ctx, tool)
+                    left, right = _fetch_and_clear(ctx)
                 break
             except PlanningError as err:
                 if err.reason != "pick_failed" or nudge == NUDGES:
@@ -283,10 +292,11 @@ class FetchBlockWithRoller(Task):
         yield from final.actions()
 
 
-def _fetch_and_clear(ctx: SkillContext, tool: RollerTool) -> tuple[ArmPlan, ArmPlan]:
-    """Stage 2's plans: the right draws the roller back, lays it down and retreats; the left
-    picks the cube and sets it on the middle of the plate."""
-    right = withdraw(ctx, START_X).then(lay_down(ctx, tool), retreat(ctx, "right"))
+def _fetch_and_clear(ctx: SkillContext) -> tuple[ArmPlan, ArmPlan]:
+    """Stage 2's plans: the right draws the roller back until its tip clears the shelf and
+    keeps it in hand there (TASKS.md section 11: the reference keeps the roller to the end);
+    the left picks the cube and sets it on the middle of the plate."""
+    right = withdraw(ctx, START_X)
     top = TABLE_TOP + SHELF_DIMS.top + CUBE_EDGE / 2
     goal = RigidTransform([SHELF_XY[0], SHELF_XY[1], top + 0.001])
     left = pick(ctx, "left", CUBE, grasps=nearest_first(ctx, "left", cube_grasps(ctx))).then(
@@ -470,14 +480,14 @@ def push_on(ctx: SkillContext, distance: float) -> ArmPlan:
     return level.then(on)
 
 
-def withdraw(ctx: SkillContext, start_x: float) -> ArmPlan:
-    """Draw the roller straight back out of the tunnel to its tip at `start_x`, then lift
-    it clear. The grasp is re-measured first (the roller turns a few degrees in the hand
-    while pushing): the roller is levelled again and raised by RAISE, then drawn back."""
+def level_roller(ctx: SkillContext) -> ArmPlan:
+    """Level the roller again from the re-measured grasp (it turns a few degrees in the hand
+    while pushing) and raise its tip by RAISE off the pushing line. A track: at the end of
+    the push the hand may graze the table, which only a track allows."""
     X_now = ctx.model.tcp_pose(ctx.q, "right")
     tool = RollerTool.from_grasp(ctx)
     tip = ctx.model.held_pose("right", ctx.q) @ tool.p_OQ + np.array([0.0, 0.0, RAISE])
-    level = track(
+    return track(
         ctx,
         "right",
         _between(X_now, tool.tcp_at(tip)),
@@ -486,12 +496,19 @@ def withdraw(ctx: SkillContext, start_x: float) -> ArmPlan:
         label="level the roller",
         ignore=[CUBE],
     )
+
+
+def withdraw(ctx: SkillContext, start_x: float) -> ArmPlan:
+    """Draw the levelled roller (:func:`level_roller`) straight back out of the tunnel to its
+    tip at `start_x`, then lift it clear."""
+    tool = RollerTool.from_grasp(ctx)
+    tip = ctx.model.held_pose("right", ctx.q) @ tool.p_OQ
     out = np.array([start_x, tip[1], tip[2]])
     dist = float(np.linalg.norm(out - tip))
     back = track(ctx, "right", tool.line(tip, out), dist, 0.0, label="draw back", ignore=[CUBE])
     up = out + np.array([0.0, 0.0, APPROACH])
     rise = track(ctx, "right", tool.line(out, up), APPROACH, 0.0, label="roller up")
-    return level.then(back, rise)
+    return back.then(rise)
 
 
 def _between(X_a: RigidTransform, X_b: RigidTransform) -> Callable[[float], RigidTransform]:
@@ -505,12 +522,3 @@ def _between(X_a: RigidTransform, X_b: RigidTransform) -> Callable[[float], Rigi
         return RigidTransform(R, p_a + s * (p_b - p_a))
 
     return pose_at
-
-
-def lay_down(ctx: SkillContext, tool: RollerTool) -> ArmPlan:
-    """Lay the held roller on the table at PARK_XY along x, turned in the hand as it was
-    while pushing (level)."""
-    radius = ctx.model.object(ROLLER).shape.radius
-    R = tool.R_WO
-    goal = RigidTransform(R, [PARK_XY[0], PARK_XY[1], TABLE_TOP + radius + 0.002])
-    return place(ctx, "right", goal, yaws=(0.0, math.pi))

@@ -30,6 +30,7 @@ from bicoord_drake.planning.skills import (
     pick,
     place,
     pour,
+    retreat,
     solve_tcp,
 )
 from bicoord_drake.stages import Stage
@@ -71,8 +72,10 @@ POUR_CAVITY = Cavity(
     floor_radius=POUR_RADIUS - POUR_WALL,
     rim_radius=POUR_RADIUS - POUR_WALL,
 )
-# ---- the catching bowl (right): the straight 12 mm-wall bowl of the toss trials.
-CATCH_BOWL = BowlShape(radius=0.075, base_radius=0.075, height=0.05, wall=0.012)
+# ---- the catching bowl (right): a straight 12 mm-wall bowl 20 cm across at the rim (TASKS.md
+# section 12: wide enough for a hand as wide as the Franka Hand to hold its rim clear of the
+# cube's fall).
+CATCH_BOWL = BowlShape(radius=0.10, base_radius=0.10, height=0.05, wall=0.012)
 CUBE = 0.02
 TARGET = 0.10  # side of the grey target square
 # ---- where the pour happens (world): the lip above the catching bowl.
@@ -95,8 +98,8 @@ CLEARANCE = 0.02
 #: Meetings tried before the expert gives up pouring (the pour is planned from the grasps
 #: measured at the meeting, which can differ from the rehearsed ones by a degree or so).
 MEETINGS = 3
-#: Alignment the expert requires (measured) before it tilts.
-ALIGN_XY = 0.05  # lip within this of the catching bowl's axis (xy)
+#: Alignment the expert requires (measured) before it tilts (TASKS.md section 12).
+ALIGN_XY = CATCH_BOWL.radius - 0.03  # lip within this of the catching bowl's axis (xy)
 ALIGN_Z = (0.03, 0.10)  # lip this high above the catching bowl's rim
 ALIGN_TILT = np.radians(8)  # both bowls this level
 SETTLE = 0.4
@@ -109,10 +112,15 @@ SETTLE = 0.4
 #: holds still while its servos catch up with the lowering, and the gripper opens slowly. The
 #: left opens only GRIP_MARGIN per side off the wall, and fully once backed off: opened fully
 #: at the table, its fingers tipped the empty pouring bowl 10 deg and pushed it 2.5 cm, and it
-#: rose with the backing-off hand (SAP, seeds 5, 7, 15, 24). (The right, whose rim grasp on the
-#: catching bowl was approached fully open, kept the bowl between its fingers when opened so
-#: little (seed 21): it opens fully.)
+#: rose with the backing-off hand (SAP, seeds 5, 7, 15, 24). The right does the same with the
+#: 20 cm catching bowl, whose rim it grips with the fingertips clear of the base
+#: (:func:`_catch_grasps`): gripped deeper, the inner fingertip on the base wedged the bowl,
+#: which rose with the opened hand (seed 0).
 SET_DOWN = 0.0  # bowl bottom above the table at the release, m
+#: Where the left arm sets its emptied bowl down (table x, y): beside the meeting point
+#: (TASKS.md section 12: x in [-0.12, -0.02]), on the left arm's side of the catching bowl's
+#: way to the target, 5 cm or more from its footprint.
+SET_ASIDE_XY = (-0.09, float(LIP_AT[1]))
 HOLD_BEFORE_RELEASE = 0.27  # s held still, gripper closed, before opening
 RELEASE = 0.67  # s over which the gripper opens
 BOWL_COLORS = {
@@ -132,10 +140,11 @@ class HandoverBlockWithBowls(Task):
     rim and meet above the middle of the table: the right arm holds its bowl level just in
     front of (toward the robot) and below the left bowl's spout; only once the measured rims
     are aligned does the left arm tilt its bowl 80 deg about the spout lip, toward the robot,
-    so the cube tips over the lip and drops into the right bowl; then the left arm puts its
-    empty bowl back and retreats while the right arm places its bowl, with the cube in it, on
-    the grey square. The left bowl has a straight 12 mm wall (held level by the rim) with a
-    spout - a gap in the wall closed by a 4 mm lip - where it pours.
+    so the cube tips over the lip and drops into the right bowl (20 cm across); then the left
+    arm sets its empty bowl down beside the meeting point and retreats while the right arm
+    places its bowl, with the cube in it, on the grey square. The left bowl has a straight
+    12 mm wall (held level by the rim) with a spout - a gap in the wall closed by a 4 mm
+    lip - where it pours.
 
     Randomization: both bowls' positions (x in [-0.2, -0.15] and [0.15, 0.2], y in
     [-0.15, -0.05]), the left bowl's yaw (spout toward the robot, +-0.25 rad), the cube's
@@ -143,7 +152,8 @@ class HandoverBlockWithBowls(Task):
     [-0.05, 0.05]), the bowls' colour.
 
     Stages: (1) both bowls lifted, cube still in the left one; (2) the cube poured into the
-    right bowl; (3) the right bowl set on the target, the left bowl put back.
+    right bowl; (3) the right bowl set on the target, the left bowl set down beside the
+    meeting point.
 
     Success: the right bowl standing upright on the table within 2.5 cm (xy) of the target
     centre with the cube inside, released (both grippers open, no finger touching either bowl
@@ -231,6 +241,11 @@ class HandoverBlockWithBowls(Task):
             },
         )
 
+    def may_leave_table(self, scene: Scene) -> dict[str, None]:
+        # Success needs only the catching bowl and the cube: an emptied pouring bowl a policy
+        # drops does not end its rollout early.
+        return {"pour_bowl": None}
+
     def object_count(self, scene: Scene) -> int:
         return 4  # two bowls, the cube, the target
 
@@ -260,7 +275,7 @@ class HandoverBlockWithBowls(Task):
             ),
             Stage(
                 "set the bowl on the target",
-                "put the empty bowl back, retreat",
+                "set its bowl down beside the meeting point, then retreat",
                 "place the bowl on the grey square",
                 0.5,
                 all_of(
@@ -278,7 +293,6 @@ class HandoverBlockWithBowls(Task):
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         ctx = self.skill_context(view, clearance=CLEARANCE)
-        left_xy = scene.draws["left_bowl_xy"]
         target_xy = scene.draws["target_xy"]
 
         run = partial(follow, ctx, view)
@@ -288,27 +302,32 @@ class HandoverBlockWithBowls(Task):
         with ctx.model.ignoring(["cube"]):
             # ---- stage 1: both arms lift their bowls by the rim (left: away from the spout)
             left = _pick_pour_bowl(ctx, lift=0.12)
-            right = pick(ctx, "right", "catch_bowl", kinds=["rim"], lift=0.12)
+            right = pick(ctx, "right", "catch_bowl", grasps=_catch_grasps(ctx), lift=0.12)
             yield from run(merge(ctx, left, right))
             # ---- stage 2: right holds its bowl under the meeting point, left brings its spout
             # lip above it; only when the measured rims are aligned does left tilt.
             yield from _meet_and_pour(ctx, view, run)
-            # ---- stage 3: left puts its empty bowl back, right sets its bowl on the target
-            left = place(
-                ctx,
-                "left",
-                table_target(left_xy, scene.object("pour_bowl").shape, clearance=SET_DOWN),
-                opening=_wall_opening(ctx),
-                release=RELEASE,
-                settle=HOLD_BEFORE_RELEASE,
-            ).then(grip(ctx, "left", 1.0, settle=0.0, label="open above the bowl"))
+            # ---- stage 3: right sets its bowl on the target, left sets its empty bowl down
+            # beside the meeting point and retreats (planned with the right's bowl on the
+            # target: the catching bowl still at the meeting covers the set-down spot; merge
+            # times the two so the left comes down as the right's bowl leaves)
             right = place(
                 ctx,
                 "right",
                 table_target(target_xy, CATCH_BOWL, clearance=SET_DOWN),
+                opening=_wall_opening(ctx),
                 release=RELEASE,
                 settle=HOLD_BEFORE_RELEASE,
-            )
+            ).then(grip(ctx, "right", 1.0, settle=0.0, label="open above the bowl"))
+            left = place(
+                ctx,
+                "left",
+                table_target(SET_ASIDE_XY, scene.object("pour_bowl").shape, clearance=SET_DOWN),
+                opening=_wall_opening(ctx),
+                release=RELEASE,
+                settle=HOLD_BEFORE_RELEASE,
+            ).then(grip(ctx, "left", 1.0, settle=0.0, label="open above the bowl"))
+            left = left.then(retreat(ctx, "left"))
             yield from run(merge(ctx, left, right))
             final = hold_still(ctx, SETTLE)
             yield from final.actions()
@@ -372,6 +391,18 @@ def _pick_pour_bowl(ctx: SkillContext, lift: float) -> ArmPlan:
     # down near the bowl's centre and sweep the cube against the wall, where it stays pinned.
     candidates = [g for g in grasps if on_the_left_side(g)]
     return pick(ctx, side, name, lift=lift, grasps=candidates, approach_opening=_wall_opening(ctx))
+
+
+def _catch_grasps(ctx: SkillContext) -> list[Grasp]:
+    """Rim grasps of the catching bowl whose fingertips stay clear of its base (its top is a
+    wall's thickness above the bottom), so the inner finger cannot wedge the bowl."""
+    return bowl_rim_grasps(
+        ctx.model.object_pose("catch_bowl"),
+        CATCH_BOWL,
+        ctx.model.embodiment.arm.gripper,
+        base=arm_base(ctx.model.embodiment, "right"),
+        params=GraspParams(tip_clearance=CATCH_BOWL.wall + 0.003),
+    )
 
 
 def _wall_opening(ctx: SkillContext) -> float:

@@ -85,8 +85,9 @@ NEST_DROP = 0.004
 #: Seconds over which a gripper lets go of a nested bowl (a fast opening pushes it aside).
 RELEASE = 0.67
 NEST = {"release": RELEASE}
-#: Where an arm holding the next bowl waits: TCP at |x|, y past the spot, z above the table.
-WAIT_AT = (0.3, 0.14, 0.18)
+#: Where an arm holding the next bowl waits: TCP at |x| (within 0.18 m of the spot, TASKS.md
+#: section 17), y past the spot, z above the table.
+WAIT_AT = (0.18, 0.14, 0.18)
 #: While one arm leaves the stack and the other brings the next bowl, the bringing arm's TCP
 #: comes within CLEAR_RADIUS (xy, m) of the spot only CLEAR_LAG (s) after the leaving arm's TCP
 #: has gone out of it (merge's collision check leaves out a bowl that is let go within the

@@ -56,7 +56,7 @@ def test_tcp_at_home_matches_reference_kinematics(robot, side):
     e, plant, arms = robot
     context = plant.CreateDefaultContext()
     X = plant.GetFrameByName("tcp", arms[side]).CalcPoseInWorld(context)
-    np.testing.assert_allclose(X.translation(), reference_tcp(e, side, e.home), atol=1e-9)
+    np.testing.assert_allclose(X.translation(), reference_tcp(e, side, e.home_of(side)), atol=1e-9)
     # home: in front of its base, above the table, on its own side of the table
     base = np.array(e.base_pose(side).xyz)
     assert X.translation()[1] > base[1] + 0.15
@@ -79,7 +79,7 @@ def test_tcp_is_midway_between_the_finger_pads(robot):
     e, plant, arms = robot
     context = plant.CreateDefaultContext()
     inst = arms["left"]
-    plant.SetPositions(context, inst, np.concatenate([e.home, [0.03, 0.03]]))
+    plant.SetPositions(context, inst, np.concatenate([e.home_of("left"), [0.03, 0.03]]))
     X_WT = plant.GetFrameByName("tcp", inst).CalcPoseInWorld(context)
     pads = []
     for finger in ("left_finger", "right_finger"):

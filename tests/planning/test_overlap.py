@@ -5,10 +5,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from pydrake.all import RigidTransform
 
 import bicoord_drake.tasks.clean_table as ct
-from bicoord_drake.models.scene import TABLE_TOP
 from bicoord_drake.planning.model import PlanningModel
 from bicoord_drake.planning.skills import (
     ArmPlan,
@@ -16,12 +14,12 @@ from bicoord_drake.planning.skills import (
     arrive_as_leaves,
     first_step_in_zone,
     leave_as_arrives,
-    move_tcp,
     periods,
     retreat,
     slowed_after,
     split_at,
 )
+from tests.planning.bins import to_bin
 
 RADIUS = 0.12
 LAG = 0.2
@@ -63,18 +61,12 @@ def test_slowed_after_leaves_a_long_enough_plan_alone():
     assert slowed_after(CTX15, plan, 29, 50) is plan
 
 
-def _to_bin(ctx, side, dx=0.0):
-    X = ctx.model.tcp_pose(ctx.q, side)
-    above = [ct.BIN_XY[0] + dx, ct.BIN_XY[1], TABLE_TOP + 0.2]
-    return move_tcp(ctx, side, RigidTransform(X.rotation(), above))
-
-
 def test_leave_as_arrives_times_the_arrival_and_ends_the_leave_with_it():
     ctx = SkillContext(PlanningModel(ct.CleanTable().sample_scene(0)))
-    _to_bin(ctx, "right", 0.03)
-    _to_bin(ctx, "left", -0.14)
+    to_bin(ctx, "right", 0.03)
+    to_bin(ctx, "left", -0.14)
     leave = retreat(ctx, "right")
-    arrive = _to_bin(ctx, "left", -0.03)
+    arrive = to_bin(ctx, "left", -0.03)
     timed = arrive_as_leaves(ctx, leave, arrive, ct.BIN_XY, RADIUS, lag=LAG)
     motion = leave_as_arrives(ctx, leave, arrive, ct.BIN_XY, RADIUS, lag=LAG)
     left, right = ctx.model.side_slice("left"), ctx.model.side_slice("right")

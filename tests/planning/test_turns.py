@@ -17,12 +17,12 @@ from bicoord_drake.planning.skills import (
     arrive_as_leaves,
     drop_into,
     first_step_in_zone,
-    move_tcp,
     retreat,
     take_turn,
     turns,
 )
 from bicoord_drake.stages.predicates import Cavity, cavity_of
+from tests.planning.bins import to_bin
 
 RADIUS = 0.12
 LAG = 0.2
@@ -44,18 +44,12 @@ def _tcp_dist(ctx, motion, side):
     return np.array(out)
 
 
-def _to_bin(ctx, side, dx=0.0):
-    X = ctx.model.tcp_pose(ctx.q, side)
-    above = [ct.BIN_XY[0] + dx, ct.BIN_XY[1], TABLE_TOP + 0.2]
-    return move_tcp(ctx, side, RigidTransform(X.rotation(), above))
-
-
 def test_arriving_arm_enters_the_zone_as_the_other_leaves_it_and_waits_no_longer(scene):
     ctx = SkillContext(PlanningModel(scene))
-    _to_bin(ctx, "right", 0.03)  # the right arm's TCP over the bin; it leaves from there
-    _to_bin(ctx, "left", -0.14)  # the left one waits just outside the zone
+    to_bin(ctx, "right", 0.03)  # the right arm's TCP over the bin; it leaves from there
+    to_bin(ctx, "left", -0.14)  # the left one waits just outside the zone
     leave = retreat(ctx, "right")
-    arrive = _to_bin(ctx, "left", -0.03)
+    arrive = to_bin(ctx, "left", -0.03)
     delay = arrival_delay(ctx, leave, arrive, ct.BIN_XY, RADIUS, LAG)
     assert delay > 0  # the left arm would come in too early at its own pace
     motion = arrive_as_leaves(ctx, leave, arrive, ct.BIN_XY, RADIUS, lag=LAG)
@@ -77,17 +71,17 @@ def test_arriving_arm_enters_the_zone_as_the_other_leaves_it_and_waits_no_longer
 
 def test_arrive_as_leaves_needs_two_arms(scene):
     ctx = SkillContext(PlanningModel(scene))
-    plan = _to_bin(ctx, "right")
+    plan = to_bin(ctx, "right")
     with pytest.raises(ValueError, match="both the right arm"):
         arrive_as_leaves(ctx, plan, plan, ct.BIN_XY, RADIUS)
 
 
 def _leave_and_arrive(scene):
     ctx = SkillContext(PlanningModel(scene))
-    _to_bin(ctx, "right", 0.03)
-    _to_bin(ctx, "left", -0.14)
+    to_bin(ctx, "right", 0.03)
+    to_bin(ctx, "left", -0.14)
     leave = retreat(ctx, "right")
-    return ctx, leave, _to_bin(ctx, "left", -0.03)
+    return ctx, leave, to_bin(ctx, "left", -0.03)
 
 
 def test_take_turn_is_arrive_as_leaves_when_the_arms_keep_apart(scene):

@@ -49,7 +49,7 @@ def test_an_annotation_failure_is_a_failed_seed_with_its_reason(monkeypatch):
 
 
 def test_a_seed_that_crashes_is_recorded_and_the_run_goes_on(tmp_path, monkeypatch):
-    def flaky(setup, depth=False):
+    def flaky(setup, depth=False, action_noise=0.0):
         if setup.seed == 5:
             raise RuntimeError("simulator fault on purpose")
         return gen.EpisodeResult(setup.seed, False, "planning: ik_infeasible")

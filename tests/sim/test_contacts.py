@@ -2,11 +2,13 @@
 
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from bicoord_drake.config import StationConfig
 from bicoord_drake.models.geometry import Pose
 from bicoord_drake.models.objects import BoxShape, SceneObject
+from bicoord_drake.models.robots import get_embodiment
 from bicoord_drake.models.scene import Scene, cube
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.sim.station import build_station
@@ -22,10 +24,14 @@ def cube_on_the_left_hand():
     body is rigid-hydroelastic: the cube rests on it, where with point contact under "lagged"
     it bounced off within a control step).
     """
+    # 0.155 m in front of the left base along the arm's plane, which home_spread turns
+    embodiment = get_embodiment("aloha_viperx")
+    base, spread = np.array(embodiment.left_base.xyz), embodiment.home_spread
+    xy = base[:2] + 0.155 * np.array([-np.sin(spread), np.cos(spread)])
     on_hand = SceneObject(
         name="on_hand",
         shape=BoxShape(size=(0.03, 0.03, 0.03)),
-        pose=Pose(xyz=(-0.25, -0.265, 1.030)),
+        pose=Pose(xyz=(float(xy[0]), float(xy[1]), 1.030), rpy=(0.0, 0.0, spread)),
     )
     scene = Scene(name="on_hand", objects=(on_hand, cube("free", 0.1, 0.0)))
     sim = Simulation(build_station(scene, StationConfig(render=False)))

@@ -25,7 +25,7 @@ def test_cube_lift_and_hold_without_slip(side, x):
     sim = Simulation(station)
     home = station.embodiment.home_action()
     k = 0 if side == "left" else 7
-    q_home = home[k : k + 6]
+    q_home = np.asarray(station.embodiment.home)  # IK seed: the in-plane home (no spread)
     centre = np.array([x, -0.1, 0.77])
     q_pre = solve_arm_ik(station, side, RigidTransform(R_TOP_DOWN, centre + [0, 0, 0.10]), q_home)
     q_grasp = solve_arm_ik(station, side, RigidTransform(R_TOP_DOWN, centre + [0, 0, 0.004]), q_pre)
@@ -65,7 +65,10 @@ def test_finger_contacts_report_the_grasping_side():
     home = station.embodiment.home_action()
     centre = np.array([-0.2, -0.1, 0.774])
     q_pre = solve_arm_ik(
-        station, "left", RigidTransform(R_TOP_DOWN, centre + [0, 0, 0.1]), home[:6]
+        station,
+        "left",
+        RigidTransform(R_TOP_DOWN, centre + [0, 0, 0.1]),
+        np.asarray(station.embodiment.home),
     )
     q_grasp = solve_arm_ik(station, "left", RigidTransform(R_TOP_DOWN, centre), q_pre)
     for q, opening, n in ((q_pre, 1.0, 20), (q_grasp, 1.0, 15), (q_grasp, 0.0, 10)):

@@ -70,6 +70,21 @@ def test_released_needs_open_grippers_and_no_contact():
     assert not P.released("small")(state(openings=(0.2, 1.0)))
     assert not P.released("small")(state(contacts={"small": {"right"}}))
     assert P.released("small")(state(contacts={"large": {"right"}}))
+
+
+def test_released_lets_a_hand_keep_a_named_tool():
+    holding = {"large": {"right"}}  # the right's fingers closed on the tool
+    kept = P.released("small", tools=["large"])
+    assert kept(state(openings=(1.0, 0.2), contacts=holding, finger_contacts=holding))
+    # without the tool named, or closed on nothing, or closed on something else: not released
+    assert not P.released("small")(
+        state(openings=(1.0, 0.2), contacts=holding, finger_contacts=holding)
+    )
+    assert not kept(state(openings=(1.0, 0.2)))
+    assert not kept(state(openings=(0.2, 1.0), contacts={"large": {"right"}}))
+    # the hand with the tool touching the placed object: not released
+    both = {"large": {"right"}, "small": {"right"}}
+    assert not kept(state(openings=(1.0, 0.2), contacts=both, finger_contacts=both))
     assert P.released("small")(state(openings=(0.5, 0.5)))
 
 

@@ -67,6 +67,8 @@ def toss(
     start: Literal["early", "late"] = "early",
     hold_after: float = 0.8,
     aim: Sequence[float] = (0.0, 0.0),
+    long_axis: Literal["across", "along"] = "across",
+    coast_after: float | None = None,
 ) -> Motion:
     """Throw the object held by `thrower` into the container held by `catcher`.
 
@@ -83,9 +85,21 @@ def toss(
     (:func:`~bicoord_drake.planning.throwing.throw_and_catch`). The flight is checked against
     both arms. ``info`` holds the predicted release, rim crossing and landing (motion sample
     indices and seconds from the motion's start). On failure nothing is changed.
+
+    A box is turned on the way to the release so that its long side lies across the flight
+    (`long_axis` "across": landing end first, it would pivot up onto its end) or, for a short
+    drop into the container (`long_axis` "along"), along it: the thrower's fingers then close
+    across the flight and stay clear of the catcher's hand on the far rim. `coast_after` (s,
+    default THROW_COAST[1]) is how long the hand keeps the release velocity after the release
+    sample before it brakes: a short throw over the container ends sooner, clear of the
+    catcher (at least RELEASE_DELAY, for the object to leave first).
     """
     if thrower == catcher:
         raise ValueError("thrower and catcher must be different arms")
+    if long_axis not in ("across", "along"):
+        raise ValueError(f"long_axis must be 'across' or 'along', got {long_axis!r}")
+    if coast_after is not None and coast_after < RELEASE_DELAY:
+        raise ValueError(f"coast_after must be >= RELEASE_DELAY ({RELEASE_DELAY} s)")
     held, bowl = ctx.model.held.get(thrower), ctx.model.held.get(catcher)
     if held is None:
         raise PlanningError("gripper_empty", f"{thrower} holds nothing to throw")
@@ -106,6 +120,8 @@ def toss(
             start,
             hold_after,
             np.asarray(aim, dtype=float),
+            long_axis,
+            THROW_COAST[1] if coast_after is None else coast_after,
         )
 
 
@@ -123,6 +139,8 @@ def _toss(
     start,
     hold_after,
     aim,
+    long_axis="across",
+    coast_after=THROW_COAST[1],
 ) -> Motion:
     name, shape = held.name, ctx.model.object(held.name).shape
     gripper = ctx.model.embodiment.arm.gripper
@@ -132,7 +150,7 @@ def _toss(
     p_rel = np.asarray(release, dtype=float)
     v = speed * (np.cos(angle) * direction + np.sin(angle) * np.array([0.0, 0.0, 1.0]))
 
-    throw, q_wind, soft = _throw(ctx, thrower, held, p_rel, v)
+    throw, q_wind, soft = _throw(ctx, thrower, held, p_rel, v, long_axis, coast_after)
     # The catch: where the object (as oriented at the release) crosses the rim and the
     # bottom of the raised bowl.
     R = ctx.model.held_pose(thrower, ctx.with_arm(thrower, throw.q_release)).rotation().matrix()
@@ -269,6 +287,8 @@ def _throw(
     held,
     p_rel: np.ndarray,
     v: np.ndarray,
+    long_axis: Literal["across", "along"] = "across",
+    coast_after: float = THROW_COAST[1],
 ) -> tuple[ThrowPlan, np.ndarray, float]:
     """The thrower's :class:`ThrowPlan`, its windup joints and the light-grip opening.
 
@@ -276,8 +296,8 @@ def _throw(
     sample (inside the coast, whose joint velocity gives exactly `v` there). The windup lies
     on the same joint line, far enough back to reach that velocity. A box may be turned
     about the vertical on the way to the release (quarter turns, as held or squared to the
-    flight): the shortest along the flight (its long side across) first, then the one with
-    the least spin."""
+    flight): the shortest along the flight (its long side across) first - with `long_axis`
+    "along", the longest - then the one with the least spin."""
     obj = ctx.model.object(held.name)
     gripper = ctx.model.embodiment.arm.gripper
     limits = JointLimits.from_embodiment(ctx.model.embodiment, arms=1, speed=1.0)
@@ -312,15 +332,17 @@ def _throw(
             except PlanningError as err:
                 reasons.append(err.reason)
                 continue
-            options.append((round(length / 0.005), abs(float(J[1] @ qd)), q_rel, qd))
-    # The shortest along the flight (long axis across it) first, then the least spin.
+            rank = round(length / 0.005) * (1 if long_axis == "across" else -1)
+            options.append((rank, abs(float(J[1] @ qd)), q_rel, qd))
+    # The shortest along the flight (long axis across it; "along": the longest) first, then
+    # the least spin.
     for *_, q_rel, qd in sorted(options, key=lambda o: o[:2]):
         q_sample = q_rel - RELEASE_DELAY * qd
         # Joint-line distance (in seconds of release velocity) to reach it from rest.
         a = float(np.min(limits.acceleration / np.maximum(np.abs(qd), 1e-9)))
         j = float(np.min(limits.jerk / np.maximum(np.abs(qd), 1e-9)))
         ramp = 0.5 * (1 / a + a / j) if a * a / j <= 1 else np.sqrt(1 / j)
-        coast = (ctx.steps(THROW_COAST[0]), ctx.steps(THROW_COAST[1]))
+        coast = (ctx.steps(THROW_COAST[0]), ctx.steps(coast_after))
         q_wind = q_sample - (coast[0] * ctx.dt + 1.3 * ramp) * qd
         try:
             if not np.all((q_wind >= limits.lower) & (q_wind <= limits.upper)):
