@@ -67,10 +67,9 @@ MAX_TILT = math.radians(10)
 XY_TOL = 0.03
 STILL_FOR = 1.0
 #: Expert: lift (m, the roller's bottom ends LIFT + 2 cm above the table),
-#: clearance over the cube while carrying (m), the release ramp (s).
+#: clearance over the cube while carrying (m).
 LIFT = LIFT_HEIGHT + 0.025
 HOVER = 0.03
-RELEASE = 0.67
 #: Seconds both arms hold still at the end, after the retreat.
 SETTLE = 0.27
 
@@ -205,7 +204,7 @@ class BalanceRoller(Task):
         yield from run(carry_together(ctx, over, label="carry over the block"))
         on = RigidTransform(R_level, [*xy, block_top + radius + 0.001])
         lower = carry_together(ctx, on, label="lower onto the block", ignore=[ROLLER])
-        release = release_together(ctx, release=RELEASE, ignore=[BLOCK])
+        release = release_together(ctx, gentle=True, ignore=[BLOCK])
         yield from run(lower.then(release))
         away = merge(ctx, retreat(ctx, "left"), retreat(ctx, "right"))
         final = hold_still(ctx, SETTLE)

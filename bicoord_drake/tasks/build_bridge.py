@@ -81,7 +81,6 @@ MAX_TILT = math.radians(10)
 #: the release ramps (s).
 CLEAR = 0.03
 HOVER = 0.02
-RELEASE = 0.53
 #: Seconds both arms hold still at the end (the placements must be seen settled).
 SETTLE = 0.53
 
@@ -260,7 +259,7 @@ class BuildBridge(Task):
             for p, (x, y) in self.sites(scene).items()
         }
         places = {
-            side: partial(place, ctx, side, goals[pier], release=RELEASE)
+            side: partial(place, ctx, side, goals[pier], gentle_release=True)
             for side, pier in zip(SIDES, PIERS, strict=True)
         }
         yield from run(merge(ctx, *plan_both(ctx, places)))
@@ -279,7 +278,7 @@ class BuildBridge(Task):
         yield from run(carry_together(ctx, over, label="carry over the piers"))
         on = RigidTransform(R, [mid[0], mid[1], top + side / 2 + 0.001])
         lower = carry_together(ctx, on, label="lower onto the piers", ignore=[BEAM])
-        release = release_together(ctx, release=RELEASE, ignore=list(PIERS))
+        release = release_together(ctx, gentle=True, ignore=list(PIERS))
         yield from run(lower.then(release))
         away = merge(ctx, retreat(ctx, "left"), retreat(ctx, "right"))
         final = hold_still(ctx, SETTLE)

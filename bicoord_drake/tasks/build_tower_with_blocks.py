@@ -63,9 +63,6 @@ COLORS = {
 }
 #: Where the arm holding the small cube waits: TCP at |x|, y past the spot, z above the table.
 WAIT_AT = (0.2, 0.06, 0.16)
-#: Seconds over which a gripper lets go of a cube on the tower: a fast opening
-#: flicks a light cube sideways off its smaller support.
-RELEASE = 0.8
 #: Radius (m, xy) of the zone around the tower spot one hand at a time works in.
 SPOT_ZONE = 0.05
 #: Seconds both arms hold still at the end: the tower must be seen at rest for 0.3 s.
@@ -270,7 +267,7 @@ class BuildTowerWithBlocks(Task):
             # ---- stage 4: the middle cube goes on the large one while the small cube is
             # carried to its waiting point on the first arm's side
             plans = {first: wait_beside(ctx, first, spot, WAIT_AT)}
-            plans[other] = place(ctx, other, on(middle, large), release=RELEASE)
+            plans[other] = place(ctx, other, on(middle, large), gentle_release=True)
             yield from run(both(plans))
             stacker, leaver = first, other
         else:
@@ -278,14 +275,14 @@ class BuildTowerWithBlocks(Task):
             # other holds the small cube at its waiting point: the spot takes one hand at a
             # time (turn-taking forced by the tower: the small cube goes on the middle one)
             yield from run(both({first: pick(ctx, first, middle)}))
-            plans = {first: place(ctx, first, on(middle, large), release=RELEASE)}
+            plans = {first: place(ctx, first, on(middle, large), gentle_release=True)}
             yield from run(both(plans))
             stacker, leaver = other, first
         # ---- stage 5: the arm that stacked the middle cube leaves as the small cube arrives
         # (the leaver's way home is timed to end with the stacking: it is out of the spot's
         # zone at its own pace, then slows down)
         leaving = retreat(ctx, leaver)
-        stacking = place(ctx, stacker, on(small, middle), release=RELEASE)
+        stacking = place(ctx, stacker, on(small, middle), gentle_release=True)
         yield from run(leave_as_arrives(ctx, leaving, stacking, spot, SPOT_ZONE))
         final = hold_still(ctx, SETTLE)
         yield from final.actions()

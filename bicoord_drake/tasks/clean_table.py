@@ -38,7 +38,6 @@ from bicoord_drake.planning.skills import (
     merge,
     pick_sliding,
     retreat,
-    squeeze_release_time,
     take_turn,
     wait_beside,
 )
@@ -115,12 +114,10 @@ DROP_GAP = 0.03
 DROP_LOWER = 0.04
 DROP_RETREAT = 0.05
 FALL = 0.025
-#: A dropped object is let go over ``squeeze_release_time`` (the gripper's force limit at
-#: 8 N per step: the ViperX's over 4, as fast as its fingers open anyway, so its drops are
-#: unchanged, the Franka Hand's over 9). Opened at once (3 steps), the jaw leaving last dragged
-#: the Franka Hand's objects 1.5-2 cm sideways as they fell (under SAP), off their spots and
-#: onto each other; let go over 6 steps, a loaf could still tip and catch on a Franka
-#: fingertip; over 6 or more, the ViperX's long fingers kept hold of a loaf (seed 2).
+#: A dropped object is let go gently (``gentle_release``). Opened at once (3 steps), the jaw
+#: leaving last dragged the Franka Hand's objects 1.5-2 cm sideways as they fell (under SAP), off
+#: their spots and onto each other; let go over 6 steps, a loaf could still tip and catch on a
+#: Franka fingertip; over 6 or more, the ViperX's long fingers kept hold of a loaf (seed 2).
 #: While one arm leaves the bin and the other brings the next object, the bringing arm's TCP
 #: comes within CLEAR_RADIUS (xy, m) of the bin's centre only CLEAR_LAG (s) after the leaving
 #: arm's TCP has gone out of it (merge's check leaves out the object let go within the
@@ -416,7 +413,7 @@ def _drop(ctx: SkillContext, side: str, k: int) -> ArmPlan:
                         lower=DROP_LOWER + FALL - fall,
                         retreat=DROP_RETREAT + FALL - fall,
                         yaws=yaws,
-                        release=squeeze_release_time(ctx),
+                        gentle_release=True,
                     )
             except PlanningError as err:
                 reasons.append(err.reason)

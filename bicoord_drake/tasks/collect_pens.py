@@ -31,7 +31,6 @@ from bicoord_drake.planning.skills import (
     hold_still,
     pick_sliding,
     place,
-    squeeze_release_time,
     wait_beside,
 )
 from bicoord_drake.stages import Stage
@@ -99,8 +98,8 @@ RELEASE_GAP = 0.0531
 #: go tilted; at 17 N it stays. The ViperX's fingers stop 4 mm from the middle, so a closed
 #: ViperX grip squeezes at most 17 N: its command stays fully closed.
 HOLD_FORCE = 17.0
-#: An insert lets go over ``squeeze_release_time`` (the ViperX's over 4 steps, as fast as
-#: its fingers open anyway, so its inserts are unchanged; the Franka Hand's over 9).
+#: An insert lets go to RELEASE_GAP at the fingers' speed, not gently: let go over the gentle
+#: release's 0.8 s the last pen of seed 3 did not end in the holder (seeds 0-4, 2026-12-06).
 #:
 #: The yaws (rad) about the vertical the pen may hang at over the holder. The LEAST_TURNS of
 #: them that turn the hand least from where it holds the pen (:func:`_least_turn_yaws`) are
@@ -414,7 +413,7 @@ def _insert_to(ctx: SkillContext, side: str, held: str, insert: float) -> ArmPla
             retreat=0.05 + deeper,
             opening=ctx.model.embodiment.arm.gripper.opening_for_gap(RELEASE_GAP),
             yaws=yaws,
-            release=squeeze_release_time(ctx),
+            gentle_release=False,
         )
 
     # the LEAST_TURNS least turns one by one, then every yaw (the most natural hand first)

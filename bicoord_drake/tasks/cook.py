@@ -116,7 +116,17 @@ THROWS = tuple(
 TCP_BACK = (0.055, 0.02)
 #: Where (m, table x and y offsets from the stove) the pan's centre may catch, in the order
 #: tried: over the stove (its 10 cm square) in every case.
-CATCH_SHIFTS = ((0.0, 0.0), (0.02, 0.0), (0.0, 0.02), (0.0, -0.02), (-0.02, 0.0))
+CATCH_SHIFTS = (
+    (0.0, 0.0),
+    (0.02, 0.0),
+    (0.0, 0.02),
+    (0.0, -0.02),
+    (-0.02, 0.0),
+    (0.04, 0.0),
+    (0.0, 0.04),
+    (0.0, -0.04),
+    (-0.04, 0.0),
+)
 #: How long before the roll reaches the rim (s) the pan is in place (``toss(margin=)``).
 CATCH_MARGIN = 0.3
 #: How long (s) the thrower's hand keeps the release velocity after the release sample

@@ -137,9 +137,6 @@ MAX_DELAY, DELAY_STRIDE = 6.0, 0.2
 #: How far short (m) of its pregrasp an arm that comes to the tower ahead of its turn stops;
 #: it covers the rest as the cube above its own rises, arriving just in time.
 STANDOFF = 0.06
-#: Seconds over which a gripper lets go of a cube set on another (a slow release does
-#: not flick it off its support).
-RELEASE = 0.8
 #: Seconds both arms hold still at the end: the towers must be seen at rest for 0.3 s.
 SETTLE = 0.53
 
@@ -345,13 +342,12 @@ class DivideBlockTower(Task):
         def put(side: str, name: str, chained: bool) -> ArmPlan:
             """`side` sets the `name` it holds on its sign (on the cube there, if any), then
             (`chained`) comes straight beside the cube it takes next, if any, else goes home."""
-            slow = RELEASE if placed[side] else None
             target = goal(side, name)
             try:  # the cube turned as it is held: the hand keeps pointing across the table
                 yaw = _yaw(ctx.model.held_pose(side, ctx.q)) - _yaw(target)
-                plan = place(ctx, side, target, release=slow, yaws=[yaw])
+                plan = place(ctx, side, target, gentle_release=bool(placed[side]), yaws=[yaw])
             except PlanningError:
-                plan = place(ctx, side, target, release=slow)
+                plan = place(ctx, side, target, gentle_release=bool(placed[side]))
             placed[side].append(name)
             k = nexts[side].get(name)
             if chained and k is not None:

@@ -90,7 +90,6 @@ LIFT = 0.05
 RAISE = 0.20
 PARK_TURN = math.radians(-30)
 CARRY_TURN = math.radians(30)
-RELEASE = 0.4
 BACK_OFF, SHORT_BACK_OFF = 0.06, 0.03
 FALLBACK_TURNS = tuple(math.radians(a) for a in (0, -30, 60, -60, 90, -90))
 SETTLE = 0.53
@@ -273,9 +272,9 @@ def _release(ctx: SkillContext) -> Motion:
     """Both hands let go of the pot they hold and back off BACK_OFF (m) along their approach,
     or SHORT_BACK_OFF where an arm near the end of its reach cannot back off that far."""
     try:
-        return release_together(ctx, release=RELEASE, back=BACK_OFF)
+        return release_together(ctx, gentle=True, back=BACK_OFF)
     except PlanningError:
-        return release_together(ctx, release=RELEASE, back=SHORT_BACK_OFF)
+        return release_together(ctx, gentle=True, back=SHORT_BACK_OFF)
 
 
 def _put_back(ctx: SkillContext, pot: str) -> Motion:

@@ -82,8 +82,6 @@ LOWER_MARGIN = 0.003
 #: Most seconds one arm's approach may be delayed so that the two approaches do not meet,
 #: tried in multiples of DELAY_STRIDE (s).
 MAX_DELAY, DELAY_STRIDE = 4.0, 0.2
-#: Seconds over which a gripper lets go of a cube on the stack.
-RELEASE = 0.8
 #: The lifter's first choice of approach (its jaws then close along x).
 FRONT = np.array([0.0, 1.0, 0.0])
 #: Clearance (m) between the arms while both hold the stack (their fingers pass 2-4 cm apart).
@@ -246,7 +244,7 @@ class ExtractBottomBlockToTop(Task):
         X_top = ctx.model.object_pose(top)
         goal = stack_target(X_top, _shape(scene), _shape(scene))
         leaving = _step_back(ctx, lifter)
-        placing = place(ctx, ext, goal, approach_height=ABOVE_STACK, release=RELEASE)
+        placing = place(ctx, ext, goal, approach_height=ABOVE_STACK, gentle_release=True)
         zone = scene.draws["edge"] + 0.02
         yield from run(leave_as_arrives(ctx, leaving, placing, X_top.translation()[:2], zone))
         final = hold_still(ctx, SETTLE)
@@ -350,7 +348,7 @@ def _lower_and_raise(ctx: SkillContext, scene: Scene, ext: str, lifter: str) -> 
     down = _vertical(ctx, lifter, -drop, ignore=[top, PLATFORM], label="lower the stack")
     lowered = RigidTransform(X_top.rotation(), X_top.translation() - [0, 0, drop])
     ctx.model.set_object_pose(top, lowered)
-    opened = grip(ctx, lifter, 1.0, label="let go", ramp=RELEASE)
+    opened = grip(ctx, lifter, 1.0, label="let go", gentle=True)
     X_WO = ctx.model.held_pose(lifter, ctx.q)
     ctx.model.detach(lifter, X_WO=X_WO)
     X = ctx.model.tcp_pose(ctx.q, lifter)

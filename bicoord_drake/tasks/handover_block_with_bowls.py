@@ -122,7 +122,6 @@ SET_DOWN = 0.0  # bowl bottom above the table at the release, m
 #: way to the target, 5 cm or more from its footprint.
 SET_ASIDE_XY = (-0.09, float(LIP_AT[1]))
 HOLD_BEFORE_RELEASE = 0.27  # s held still, gripper closed, before opening
-RELEASE = 0.67  # s over which the gripper opens
 BOWL_COLORS = {
     "white": (0.92, 0.92, 0.88, 1.0),
     "blue": (0.35, 0.55, 0.85, 1.0),
@@ -316,7 +315,7 @@ class HandoverBlockWithBowls(Task):
                 "right",
                 table_target(target_xy, CATCH_BOWL, clearance=SET_DOWN),
                 opening=_wall_opening(ctx),
-                release=RELEASE,
+                gentle_release=True,
                 settle=HOLD_BEFORE_RELEASE,
             ).then(grip(ctx, "right", 1.0, settle=0.0, label="open above the bowl"))
             left = place(
@@ -324,7 +323,7 @@ class HandoverBlockWithBowls(Task):
                 "left",
                 table_target(SET_ASIDE_XY, scene.object("pour_bowl").shape, clearance=SET_DOWN),
                 opening=_wall_opening(ctx),
-                release=RELEASE,
+                gentle_release=True,
                 settle=HOLD_BEFORE_RELEASE,
             ).then(grip(ctx, "left", 1.0, settle=0.0, label="open above the bowl"))
             left = left.then(retreat(ctx, "left"))
@@ -422,11 +421,7 @@ def _meet_and_pour(
     for _ in range(MEETINGS):
         key, q_catch, q_spout = _meeting(ctx, tried)
         tried.append(key)
-        right = None
-        if not np.allclose(q_catch, ctx.arm_q("right")):
-            right = move(ctx, "right", q_catch, label="hold under the spout")
-        left = move(ctx, "left", q_spout, label="align the spout")
-        yield from run(merge(ctx, left, right))
+        yield from run(merge(ctx, *_to_meeting(ctx, q_catch, q_spout)))
         for attempt in range(2):
             error = _misalignment(view)
             if error is None:
@@ -443,6 +438,26 @@ def _meet_and_pour(
         yield from run(merge(ctx, pour_plan, None))
         return
     raise PlanningError("pour_failed", f"no pour from {MEETINGS} meetings ({'; '.join(reasons)})")
+
+
+def _to_meeting(
+    ctx: SkillContext, q_catch: np.ndarray, q_spout: np.ndarray
+) -> tuple[ArmPlan, ArmPlan | None]:
+    """(left, right) moves to the meeting: the right's planned first; where it cannot end
+    beside the left where the left waits now (a catch pose solved with the left out of the
+    way), the left's first."""
+    moves_right = not np.allclose(q_catch, ctx.arm_q("right"))
+    try:
+        with ctx.transaction():
+            right = (
+                move(ctx, "right", q_catch, label="hold under the spout") if moves_right else None
+            )
+            return move(ctx, "left", q_spout, label="align the spout"), right
+    except PlanningError:
+        if not moves_right:
+            raise
+    left = move(ctx, "left", q_spout, label="align the spout")
+    return left, move(ctx, "right", q_catch, label="hold under the spout")
 
 
 def _meeting(
@@ -491,7 +506,23 @@ def _catch_options(ctx: SkillContext) -> Iterator[tuple[int, np.ndarray]]:
             reasons.append(err.reason)
             continue
         yield k, q
-    if len(reasons) == len(CATCH_AZIMUTHS):
+    if len(reasons) < len(CATCH_AZIMUTHS):
+        return
+    # Every catch pose came too close to the left hand where it waits now (seed 4: the
+    # grippers 1.7-1.9 cm apart against 2 cm), but the left will hold the spout elsewhere:
+    # the poses solved with the left out of the way (at home), the meeting checking the pair.
+    home_left = ctx.model.home[ctx.model.side_slice("left")]
+    for k, azimuth in enumerate(CATCH_AZIMUTHS):
+        X_WB = RigidTransform(RotationMatrix.MakeZRotation(azimuth - a0), p_bowl)
+        with ctx.rehearsal():
+            ctx.q = ctx.with_arm("left", home_left)
+            try:
+                q = solve_tcp(ctx, "right", TcpTarget(X_WB @ X_BT))
+            except PlanningError as err:
+                reasons.append(err.reason)
+                continue
+        yield k, q
+    if len(reasons) == 2 * len(CATCH_AZIMUTHS):
         raise PlanningError("catch_unreachable", f"right cannot hold its bowl there ({reasons})")
 
 

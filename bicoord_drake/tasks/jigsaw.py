@@ -41,10 +41,9 @@ COLORS = {
 #: Seconds both arms hold still at the end: the last placement must be seen at rest
 #: for 0.3 s (``settled``).
 SETTLE = 0.53
-#: Seconds over which a placed cube is let go. Opened at once, a jaw that leaves last
-#: drags the cube up to 1 cm across its cell (the tolerance): with the Franka Hand under SAP
-#: the third and fourth fills ended 1.0-1.1 cm off on seed 0, 0.3 cm when let go over 12.
-RELEASE = 0.8
+#: A placed cube is let go gently: opened at once, a jaw that leaves last drags the cube up
+#: to 1 cm across its cell (the tolerance): with the Franka Hand under SAP the third and
+#: fourth fills ended 1.0-1.1 cm off on seed 0, 0.3 cm when let go over 12 steps.
 
 
 @register_task
@@ -187,19 +186,19 @@ class Jigsaw(Task):
         yield from run(merge(ctx, left, right))
         # ---- stage 2: left fills its first cell, right holds its cube clear of the grid
         yield from run(
-            merge(ctx, place(ctx, "left", goal(targets["left"][0]), release=RELEASE), None)
+            merge(ctx, place(ctx, "left", goal(targets["left"][0]), gentle_release=True), None)
         )
         # ---- stage 3: right fills, left picks its second spare
         left = pick(ctx, "left", "spare_left_0")
-        right = place(ctx, "right", goal(targets["right"][0]), release=RELEASE)
+        right = place(ctx, "right", goal(targets["right"][0]), gentle_release=True)
         yield from run(merge(ctx, left, right))
         # ---- stage 4: left fills, right picks its second spare
         right = pick(ctx, "right", "spare_right_0")
-        left = place(ctx, "left", goal(targets["left"][1]), release=RELEASE)
+        left = place(ctx, "left", goal(targets["left"][1]), gentle_release=True)
         yield from run(merge(ctx, left, right))
         # ---- stage 5: right fills the last cell, left retreats
         left = retreat(ctx, "left")
-        right = place(ctx, "right", goal(targets["right"][1]), release=RELEASE)
+        right = place(ctx, "right", goal(targets["right"][1]), gentle_release=True)
         yield from run(merge(ctx, left, right))
         final = hold_still(ctx, SETTLE)
         yield from final.actions()

@@ -104,8 +104,6 @@ LIFT = 0.08
 WAIT = (0.06, -0.10, TABLE_TOP + 0.32)
 #: How far (m) the left backs off along its approach once it let go at the handover.
 BACK_OFF = 0.10
-#: Seconds over which the right gripper lets go of a standing cuboid.
-RELEASE = 0.67
 #: The left arm has retreated once its TCP is this far (m) from the last cuboid.
 RETREATED = 0.15
 #: After the last handover the left's way home keeps its own pace until its TCP is this far
@@ -487,7 +485,7 @@ def stand_up(ctx: SkillContext, name: str, square_xy: Sequence[float]) -> ArmPla
     off up."""
     R_WO = upright_part(ctx.model.held_pose("right", ctx.q).rotation())
     goal = standing_goal(R_WO, square_xy, ctx.model.object(name).shape.size[2])
-    return place(ctx, "right", goal, release=RELEASE)
+    return place(ctx, "right", goal, gentle_release=True)
 
 
 def upright_part(R_WO: RotationMatrix) -> RotationMatrix:

@@ -43,7 +43,6 @@ from bicoord_drake.planning.skills import (
 from bicoord_drake.planning.skills.pick_place import (
     carry_margin,
     hand_params,
-    squeeze_release_time,
     wall_close_opening,
 )
 from bicoord_drake.stages import Stage
@@ -313,10 +312,10 @@ class PlacePlateAndCup(Task):
         )
         yield from run(merge(ctx, left, right))
         # ---- stage 2: left lays plate 1 on target 1, right holds cup 1 over it; then right
-        # sets the cup on the plate while left picks plate 2. A plate is let go over
-        # squeeze_release_time (the ViperX's as fast as its fingers open anyway; franka seed
-        # 8: the lighter grip's plate, let go at once, bounced and caught a finger backing off)
-        left = place(ctx, "left", plate_goal(targets[0]), release=squeeze_release_time(ctx))
+        # sets the cup on the plate while left picks plate 2. A plate is let go
+        # gently (franka seed 8: the lighter grip's plate, let go at once, bounced and caught a
+        # finger backing off)
+        left = place(ctx, "left", plate_goal(targets[0]), gentle_release=True)
         right = hover(targets[0])
         yield from run(merge(ctx, left, right))
         # (left is planned first: it leaves the plate, so the cup's descent plans around
@@ -329,7 +328,7 @@ class PlacePlateAndCup(Task):
         left = carry_above(ctx, "left", plate_goal(targets[1]), height=0.08)
         yield from run(merge(ctx, left, right))
         # ---- stage 4: left lays plate 2, right holds cup 2 over it, then sets it
-        left = place(ctx, "left", plate_goal(targets[1]), release=squeeze_release_time(ctx))
+        left = place(ctx, "left", plate_goal(targets[1]), gentle_release=True)
         right = hover(targets[1])
         yield from run(merge(ctx, left, right))
         yield from run(set_cup(ctx, lambda: retreat(ctx, "left"), cup_goal(plates[1])))

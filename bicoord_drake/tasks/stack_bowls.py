@@ -82,9 +82,8 @@ GRASP = GraspParams(rim_lean=True, rim_depth=-0.005)
 SPOT_DROP = 0.004
 #: A nested bowl is let go this far above its nested height; it settles the rest.
 NEST_DROP = 0.004
-#: Seconds over which a gripper lets go of a nested bowl (a fast opening pushes it aside).
-RELEASE = 0.67
-NEST = {"release": RELEASE}
+#: A nested bowl is let go gently (a fast opening pushes it aside).
+NEST = {"gentle_release": True}
 #: Where an arm holding the next bowl waits: TCP at |x| (within 0.18 m of the spot, TASKS.md
 #: section 17), y past the spot, z above the table.
 WAIT_AT = (0.18, 0.14, 0.18)
@@ -255,7 +254,7 @@ class StackBowls(Task):
         # ---- stage 2: the first arm sets its bowl on the spot; the other carries its bowl to
         # a waiting point beside the spot (planned first: it must not block the placement)
         plans = {second: wait_beside(ctx, second, SPOT_XY, WAIT_AT)}
-        plans[first] = place(ctx, first, _spot_goal(), release=RELEASE)
+        plans[first] = place(ctx, first, _spot_goal(), gentle_release=True)
         yield from run(both(plans))
         # ---- stage 3: the first arm leaves to pick its second bowl; the other nests its bowl
         leaver = _pick(ctx, first, b3)

@@ -85,19 +85,38 @@ def test_arm_plans_chain_only_where_they_meet():
     assert chained.num_steps == 6 and chained.events == [(3, "attach", "x")]
 
 
-def test_slow_release_ramps_the_opening_over_the_given_seconds():
+def test_gentle_release_unloads_the_squeeze_at_one_rate_on_every_gripper():
     ctx = sk.SkillContext(PlanningModel(Scene(name="empty")))
+    g = ctx.model.embodiment.arm.gripper
     ctx.opening["left"] = 0.0
     fast = sk.grip(ctx, "left", 1.0)
     ctx.opening["left"] = 0.0
-    slow = sk.grip(ctx, "left", 1.0, ramp=0.8)
-    assert fast.num_steps == ctx.gripper_steps + 4 and slow.num_steps == 12 + 4
-    assert np.all(np.diff(slow.opening) >= 0) and slow.opening[12] == 1.0
-    assert slow.opening[6] == pytest.approx(0.5)
+    seconds = sk.gentle_release_time(ctx)
+    # the command crosses the servo's force band (force_limit / kp of finger travel) at
+    # RELEASE_FORCE_RATE N/s, so the ramp lasts the stroke x kp / rate
+    stroke = g.finger_max - g.finger_min
+    assert seconds == pytest.approx(stroke * g.finger_kp / sk.RELEASE_FORCE_RATE)
+    slow = sk.grip(ctx, "left", 1.0, gentle=True)
+    n = ctx.steps(seconds)
+    assert n == 12  # the ViperX's whole stroke at 15 Hz
+    assert fast.num_steps == ctx.gripper_steps + 4 and slow.num_steps == n + 4
+    assert np.all(np.diff(slow.opening) >= 0) and slow.opening[n] == 1.0
+    assert slow.opening[n // 2] == pytest.approx(0.5)
     assert np.all(slow.q == slow.q[0])  # the arm keeps still
+    # a partial opening is spread over the same time: gentler still
     ctx.opening["left"] = 0.0
-    clamped = sk.grip(ctx, "left", 1.0, ramp=0.07)  # never faster than the fingers go
-    assert clamped.num_steps == fast.num_steps
+    narrow = sk.grip(ctx, "left", 0.4, gentle=True)
+    assert narrow.num_steps == slow.num_steps and narrow.opening[n] == pytest.approx(0.4)
+    assert np.max(np.diff(narrow.opening)) < np.max(np.diff(slow.opening))
+
+
+def test_gentle_release_together_opens_both_on_the_same_steps():
+    ctx = sk.SkillContext(PlanningModel(Scene(name="empty")))
+    ctx.opening["left"], ctx.opening["right"] = 0.0, 0.5
+    both = sk.grip_together(ctx, 1.0, gentle=True)
+    assert both.num_steps == 12 + 4
+    assert both.openings[12, 0] == 1.0 and both.openings[12, 1] == 1.0
+    assert both.openings[11, 0] < 1.0 and both.openings[11, 1] < 1.0
 
 
 def test_tcp_deviation_tells_a_descent_from_an_arc():
@@ -115,13 +134,16 @@ def test_tcp_deviation_tells_a_descent_from_an_arc():
 
 def test_place_lets_go_slowly_when_asked():
     scene = Scene(name="one", objects=(cube("a", 0.15, -0.05),))
-    plans = {}
-    for seconds in (None, 1.0):
+    plans, gentle_steps = {}, None
+    for gentle in (False, True):
         ctx = sk.SkillContext(PlanningModel(scene))
         sk.pick(ctx, "right", "a")
-        plans[seconds] = sk.place(ctx, "right", RigidTransform([0.1, -0.1, 0.77]), release=seconds)
+        if gentle:
+            gentle_steps = ctx.steps(sk.gentle_release_time(ctx))
+        goal = RigidTransform([0.1, -0.1, 0.77])
+        plans[gentle] = sk.place(ctx, "right", goal, gentle_release=gentle)
     rising = lambda p: int(np.sum(np.diff(p.opening) > 0))  # noqa: E731
-    assert rising(plans[None]) <= 4 and rising(plans[1.0]) == 15
+    assert rising(plans[False]) <= 4 and rising(plans[True]) == gentle_steps > 4
 
 
 # --------------------------------------------------------------------------------------------

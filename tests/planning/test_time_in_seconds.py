@@ -46,11 +46,12 @@ def test_holds_and_releases_last_the_same_time_at_every_rate(models):
         ctx = sk.SkillContext(model)
         assert sk.hold(ctx, "left", 0.8).num_steps - 1 == round(0.8 * hz)
         ctx.opening["left"] = 0.0
-        slow = sk.grip(ctx, "left", 1.0, ramp=0.8, settle=0.2)
-        # the opening ramps for 0.8 s and then holds for 0.2 s, whatever the rate
+        ramp = sk.gentle_release_time(ctx)
+        slow = sk.grip(ctx, "left", 1.0, gentle=True, settle=0.2)
+        # the opening ramps for the gentle release's seconds, then holds 0.2 s, at any rate
         first_open = int(np.argmax(slow.opening >= 1.0))
-        assert first_open / hz == pytest.approx(0.8, abs=1 / hz)
-        assert (slow.num_steps - 1) / hz == pytest.approx(1.0, abs=1 / hz)
+        assert first_open / hz == pytest.approx(ramp, abs=1 / hz)
+        assert (slow.num_steps - 1) / hz == pytest.approx(ramp + 0.2, abs=1 / hz)
         both = sk.hold_still(ctx, 0.53)
         assert (both.num_steps - 1) / hz == pytest.approx(0.53, abs=0.5 / hz + 1e-9)
 

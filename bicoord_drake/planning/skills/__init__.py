@@ -61,7 +61,9 @@ unchanged when they fail.
 """
 
 from bicoord_drake.planning.skills.arm import (
+    RELEASE_FORCE_RATE,
     env_gap,
+    gentle_release_time,
     grip,
     lift,
     move,
@@ -108,7 +110,6 @@ from bicoord_drake.planning.skills.pick_place import (
     pick_sliding,
     place,
     release,
-    squeeze_release_time,
     stabilize,
 )
 from bicoord_drake.planning.skills.pour import pour
@@ -138,6 +139,8 @@ __all__ = [
     "drop_into",
     "fingers_cross",
     "first_step_in_zone",
+    "RELEASE_FORCE_RATE",
+    "gentle_release_time",
     "grip",
     "grip_together",
     "handle_pairs",
@@ -159,7 +162,6 @@ __all__ = [
     "pick_sliding",
     "pick_together",
     "place",
-    "squeeze_release_time",
     "pour",
     "pull",
     "push",

@@ -105,6 +105,24 @@ def env_gap(ctx: SkillContext, start: np.ndarray, side: str, q_arm: np.ndarray) 
     return gap
 
 
+#: A gentle release lowers the finger servo's squeeze at this many N per second
+#: (:func:`gentle_release_time`): 12 control steps at 15 Hz over the ViperX's whole stroke,
+#: the slowest opening a task needed (a 16-33 g cube squeezed with 30 N flicked 2.3 cm sideways
+#: off a tower when its fingers opened in 4 steps, and stayed within 5 mm over 12:
+#: benchmarks/bench_task_build_tower_with_blocks.md).
+RELEASE_FORCE_RATE = 150.0
+
+
+def gentle_release_time(ctx: SkillContext) -> float:
+    """Seconds a gentle release lasts: the time its commanded finger would take to travel the
+    whole stroke while the finger servo's squeeze falls at RELEASE_FORCE_RATE N/s (the force
+    is finger_kp times the command's distance past the contact, so the command moves at
+    RELEASE_FORCE_RATE / finger_kp m/s). A partial opening (to a narrow jaw beside a wall) is
+    spread over the same time, more slowly still. Derived from the gripper alone."""
+    g = ctx.model.embodiment.arm.gripper
+    return (g.finger_max - g.finger_min) * g.finger_kp / RELEASE_FORCE_RATE
+
+
 def grip(
     ctx: SkillContext,
     side: str,
@@ -112,14 +130,28 @@ def grip(
     *,
     settle: float = 0.2,
     label: str = "grip",
-    ramp: float | None = None,
+    gentle: bool = False,
 ) -> ArmPlan:
     """Open or close one gripper (arm still), then hold for `settle` seconds.
 
-    The command ramps over `ramp` seconds (default: as fast as the fingers go); a slow
-    opening lets a squeezed light object unload gently instead of springing off."""
+    The command moves as fast as the fingers go, or with `gentle` over
+    :func:`gentle_release_time` (never faster than the fingers): a squeezed light object
+    unloads gently instead of springing off."""
+    return grip_over(ctx, side, opening, grip_steps(ctx, gentle), settle, label)
+
+
+def grip_steps(ctx: SkillContext, gentle: bool) -> int:
+    """Control steps of :func:`grip`'s command ramp (at least the fingers' full stroke)."""
+    if not gentle:
+        return ctx.gripper_steps
+    return max(ctx.steps(gentle_release_time(ctx)), ctx.gripper_steps)
+
+
+def grip_over(
+    ctx: SkillContext, side: str, opening: float, steps: int, settle: float, label: str
+) -> ArmPlan:
+    """The gripper command ramped linearly to `opening` over `steps`, then held `settle` s."""
     start = ctx.opening[side]
-    steps = ctx.gripper_steps if ramp is None else max(ctx.steps(ramp), ctx.gripper_steps)
     n = steps + ctx.steps(settle)
     ramp = np.clip(np.arange(n + 1) / steps, 0, 1)
     q_arm = ctx.arm_q(side)

@@ -42,7 +42,7 @@ from bicoord_drake.planning.grasps import (
     pot_handle_grasps_across,
 )
 from bicoord_drake.planning.ik import TcpTarget
-from bicoord_drake.planning.skills.arm import grip, tcp_deviation
+from bicoord_drake.planning.skills.arm import grip_over, grip_steps, tcp_deviation
 from bicoord_drake.planning.skills.core import Motion, SkillContext, combine
 from bicoord_drake.planning.skills.shapes import half_extent
 from bicoord_drake.planning.skills.tracking import (
@@ -170,12 +170,13 @@ def grip_together(
     opening: float,
     *,
     settle: float = 0.2,
-    ramp: float | None = None,
+    gentle: bool = False,
     label: str = "grip together",
 ) -> Motion:
     """Both grippers move to `opening` on the same control steps (arms still), then hold for
     `settle` seconds (see :func:`~bicoord_drake.planning.skills.arm.grip`)."""
-    plans = [grip(ctx, side, opening, settle=settle, ramp=ramp, label=label) for side in SIDES]
+    steps = grip_steps(ctx, gentle)
+    plans = [grip_over(ctx, side, opening, steps, settle, label) for side in SIDES]
     motion = combine(*plans)
     motion.label = label
     return motion
@@ -415,11 +416,12 @@ def release_together(
     ctx: SkillContext,
     *,
     opening: float = 1.0,
-    release: float | None = None,
+    gentle: bool = False,
     back: float = 0.06,
     ignore: Iterable[str] = (),
 ) -> Motion:
-    """Open both grippers on the same steps (over `release` seconds if given: a gentle one),
+    """Open both grippers on the same steps (`gentle`: a gentle release, see
+    :func:`~bicoord_drake.planning.skills.arm.grip`),
     leave the object where it is and back both TCPs off `back` (m) along their approach axes
     at once. Objects in `ignore` (e.g. the support) are not checked on the way back."""
     name = ctx.model.held_together
@@ -427,7 +429,7 @@ def release_together(
         raise PlanningError("not_held_together", "the hands do not hold one object to release")
     X_WO = ctx.model.held_pose("left", ctx.q)
     with ctx.transaction():
-        opened = grip_together(ctx, opening, ramp=release, label="open together")
+        opened = grip_together(ctx, opening, gentle=gentle, label="open together")
         ctx.model.detach_both(X_WO=X_WO)
         away = {}
         for side in SIDES:

@@ -146,18 +146,6 @@ def hand_params(ctx: SkillContext, params: GraspParams | None = None) -> GraspPa
     return replace(params, side_clearance=max(params.side_clearance, need))
 
 
-#: A slow release undoes the gripper's squeeze at about this many N per second
-#: (:func:`squeeze_release_time`).
-RELEASE_RATE = 120.0
-
-
-def squeeze_release_time(ctx: SkillContext) -> float:
-    """Seconds over which a hand lets go of what it squeezed: its force limit undone at
-    RELEASE_RATE N/s (the ViperX's 30 N in 0.25 s, as fast as its fingers open anyway; the
-    Franka Hand's 70 N in 0.58 s)."""
-    return ctx.model.embodiment.arm.gripper.force_limit / RELEASE_RATE
-
-
 def wall_close_opening(ctx: SkillContext, thickness: float) -> float:
     """The closing command of a grip across a wall `thickness` m thick (a bowl's or a plate's
     rim): the jaw gap is the wall less one pad thickness, so the finger servo presses each
@@ -275,7 +263,7 @@ def place(
     retreat: float = 0.06,
     ignore: Iterable[str] = (),
     opening: float = 1.0,
-    release: float | None = None,
+    gentle_release: bool = False,
     yaws: Sequence[float] | None = None,
     settle: float = 0.0,
 ) -> ArmPlan:
@@ -283,10 +271,10 @@ def place(
 
     The object's symmetric yaws about the goal (or `yaws`, rad) are tried, most natural
     first. The gripper opens to `opening` (less than 1 inside a container, so the fingers miss
-    its walls), over `release` seconds if given (a slow release for a light object set on a
-    small support, which a fast one can flick off). With `settle` the arm holds still that
-    many seconds, gripper closed, between lowering and releasing (the arm's servos catch up
-    with the end of the lowering before the fingers let go)."""
+    its walls), with `gentle_release` slowly (:func:`~bicoord_drake.planning.skills.arm.grip`: a
+    light object set on a small support, which a fast release can flick off). With `settle` the
+    arm holds still that many seconds, gripper closed, between lowering and releasing (the arm's
+    servos catch up with the end of the lowering before the fingers let go)."""
     held = ctx.model.held.get(side)
     if held is None:
         raise PlanningError("gripper_empty", f"{side} holds nothing to place")
@@ -324,7 +312,7 @@ def place(
             q_away,
             ignore,
             opening,
-            release,
+            gentle_release,
             settle,
         )
     raise PlanningError(
@@ -344,15 +332,15 @@ def drop_into(
     lower: float = 0.04,
     retreat: float = 0.05,
     yaws: Sequence[float] = tuple(k * np.pi / 4 for k in range(8)),
-    release: float | None = None,
+    gentle_release: bool = False,
 ) -> ArmPlan:
     """Carry the held object over the opening of `container`, lower it until its bottom is
     `fall` (m) above the rim (below it if negative: lowered into the container, from `lower`
     above that), let go and back off up: the object falls the last few cm (a bin
     is filled this way; nothing is set down inside it). The drop point is the container's
     centre shifted by `offset_xy` in the world; the object stays upright, turned by each of
-    `yaws` about the container's axes (most natural first: the wrist turns least). With
-    `release` the gripper opens over that many seconds (as :func:`place`)."""
+    `yaws` about the container's axes (most natural first: the wrist turns least).
+    `gentle_release` as :func:`place`."""
     held = ctx.model.held.get(side)
     if held is None:
         raise PlanningError("gripper_empty", f"{side} holds nothing to drop")
@@ -369,7 +357,7 @@ def drop_into(
         approach_height=lower,
         retreat=retreat,
         yaws=yaws,
-        release=release,
+        gentle_release=gentle_release,
     )
     plan.label = f"drop {held.name} into {container}"
     return plan
@@ -449,14 +437,14 @@ def _place_moves(
     q_away,
     ignore,
     opening=1.0,
-    release=None,
+    gentle_release=False,
     settle=0.0,
 ) -> ArmPlan:
     carry = move(ctx, side, q_above, label="carry", ignore=ignore)
     lower = move(ctx, side, q_place, label="lower", ignore=ignore + [name], straight=True)
     if ctx.steps(settle) > 0:
         lower = lower.then(hold(ctx, side, settle, label="settle"))
-    opened = grip(ctx, side, opening, label="release", ramp=release)
+    opened = grip(ctx, side, opening, label="release", gentle=gentle_release)
     ctx.model.detach(side, X_WO=X_WO)
     back = move(ctx, side, q_away, label="back off", ignore=ignore + [name], straight=True)
     plan = carry.then(lower, opened, back)
