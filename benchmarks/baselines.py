@@ -11,11 +11,16 @@ of generated episodes, e.g. ``scripts/generate.py --no-render`` output) are expo
 dataset with ``lerobot-train`` (no training code here; the exact command is recorded) and
 evaluated with ``scripts/evaluate.py --policy lerobot:DIR --no-render --split unseen`` on
 ``--eval-episodes`` evaluation seeds from ``100000 * (1 + --eval-seed)`` upward (disjoint from
-the generation seeds; seeds whose expert fails are skipped and reported). Each (task, policy)
-result goes to ``<work>/results.jsonl`` (a rerun skips the results already there, ``--force``
-redoes them) and ``--out`` is rewritten from all of them: SR, SSR, TL, per-stage completion,
-training steps, time and final loss, the machine, the date, the exact commands, and the paper's
-single-task Diffusion Policy numbers (image-based, GPU, RoboTwin 2.0 settings) beside ours.
+the generation seeds; seeds whose expert fails are skipped and reported). Each result goes to
+``<work>/results.jsonl``, keyed by its task, policy and every training and evaluation setting
+(:data:`SETTINGS`: inputs, resolution, demonstrations, steps, batch size, training seed, extra
+training arguments, first evaluation seed, rollouts); a rerun skips the results whose key is
+already there (``--force`` redoes them), and each training has its own checkpoint directory
+(:func:`checkpoint_name`). ``--out`` is rewritten from the latest result of every key: SR, SSR,
+TL, per-stage completion, training steps, batch size, extra arguments, time and final loss, the
+seeds evaluated and those skipped, the machine, the date, the exact commands, and the paper's
+single-task Diffusion Policy numbers (image-based, GPU, RoboTwin 2.0 settings, 100
+demonstrations per task) beside ours.
 
 Training runs on the CPU with lerobot's default policy configuration plus
 ``--train-args POLICY=ARGS`` (e.g. ``--train-args "diffusion=--policy.down_dims=[128,256,512]"``)
@@ -133,6 +138,120 @@ def run(command: list[str], log: Path) -> tuple[str, float]:
     return out.stdout, seconds
 
 
+# --------------------------------------------------------------------------- result keys
+#: The settings a result is keyed by, besides its task and policy: every training setting
+#: (what the policy saw, at which resolution, how many demonstrations, steps, batch size, seed
+#: and the extra lerobot-train arguments) and every evaluation setting (the first evaluation
+#: seed, ``scripts/evaluate.py --seed``, and the number of rollouts). Two results that differ
+#: in any of them are different rows; a rerun skips only a result with all of them equal.
+SETTINGS = (
+    "inputs",
+    "resolution",
+    "demos",
+    "steps",
+    "batch_size",
+    "train_seed",
+    "train_args",
+    "eval_seed",
+    "eval_episodes",
+)
+
+
+def normalized_args(text: str) -> str:
+    """Extra lerobot-train arguments as one canonical string (shell-split and re-joined)."""
+    return shlex.join(shlex.split(text or ""))
+
+
+def run_settings(policy: str, args: argparse.Namespace) -> dict[str, Any]:
+    """The :data:`SETTINGS` of `policy`'s run with `args` (resolution: None for state
+    inputs, where no camera is rendered)."""
+    return {
+        "inputs": args.inputs,
+        "resolution": args.resolution if args.inputs == "images" else None,
+        "demos": args.demos,
+        "steps": args.steps,
+        "batch_size": args.batch_size,
+        "train_seed": args.train_seed,
+        "train_args": normalized_args(args.train_args.get(policy, "")),
+        "eval_seed": args.eval_seed,
+        "eval_episodes": args.eval_episodes,
+    }
+
+
+def _option(tokens: list[str], name: str) -> str | None:
+    """The value of ``name=VALUE`` or ``name VALUE`` in `tokens` (the last one), else None."""
+    value = None
+    for k, token in enumerate(tokens):
+        if token.startswith(name + "="):
+            value = token.split("=", 1)[1]
+        elif token == name and k + 1 < len(tokens):
+            value = tokens[k + 1]
+    return value
+
+
+def settings_of(result: dict[str, Any]) -> dict[str, Any]:
+    """A result's :data:`SETTINGS`: its ``settings``, or for a result written before they
+    were recorded, read from its fields and its exact commands (the extra training arguments
+    are what :func:`train_command` puts between ``--seed=`` and ``--output_dir=``)."""
+    if "settings" in result:
+        return {name: result["settings"].get(name) for name in SETTINGS}
+    train = shlex.split(result.get("commands", {}).get("train", ""))
+    evaluate = shlex.split(result.get("commands", {}).get("evaluate", ""))
+    extra = ""
+    seeds = [k for k, t in enumerate(train) if t.startswith("--seed=")]
+    ends = [k for k, t in enumerate(train) if t.startswith("--output_dir=")]
+    if seeds and ends and seeds[-1] < ends[-1]:
+        extra = shlex.join(train[seeds[-1] + 1 : ends[-1]])
+    inputs = result.get("inputs", "state")
+
+    def number(value: Any) -> int | None:
+        return None if value is None else int(value)
+
+    return {
+        "inputs": inputs,
+        "resolution": result.get("resolution") if inputs == "images" else None,
+        "demos": result.get("demos"),
+        "steps": result.get("steps"),
+        "batch_size": number(result.get("batch_size", _option(train, "--batch_size"))),
+        "train_seed": number(_option(train, "--seed")),
+        "train_args": extra,
+        "eval_seed": number(_option(evaluate, "--seed")),
+        "eval_episodes": number(_option(evaluate, "--episodes")),
+    }
+
+
+def result_key(result: dict[str, Any]) -> tuple:
+    """What identifies a result: its task, policy and :data:`SETTINGS` (hashable)."""
+    settings = settings_of(result)
+    return (result["task"], result["policy"], *(settings[name] for name in SETTINGS))
+
+
+def settings_key(task: str, policy: str, args: argparse.Namespace) -> tuple:
+    """The :func:`result_key` the run of `policy` on `task` with `args` will have."""
+    settings = run_settings(policy, args)
+    return (task, policy, *(settings[name] for name in SETTINGS))
+
+
+def latest_results(results: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """One result per :func:`result_key`, the last one written, in the order first seen."""
+    latest: dict[tuple, dict[str, Any]] = {}
+    for r in results:
+        latest[result_key(r)] = r
+    return list(latest.values())
+
+
+def checkpoint_name(policy: str, args: argparse.Namespace) -> str:
+    """The checkpoint directory of `policy`'s training with `args`: readable settings and a
+    short hash of the training settings, so two trainings that differ in any (batch size,
+    seed, extra arguments, resolution) do not share one."""
+    import hashlib
+
+    settings = run_settings(policy, args)
+    training = {k: v for k, v in settings.items() if not k.startswith("eval_")}
+    digest = hashlib.sha256(json.dumps(training, sort_keys=True).encode()).hexdigest()[:8]
+    return f"{policy}_{args.inputs}_{args.demos}demos_{args.steps}steps_{digest}"
+
+
 # --------------------------------------------------------------------------- one task
 #: Written into a checkpoint directory once its training finished: the command and its time.
 TRAINED = "baselines_trained.json"
@@ -233,15 +352,16 @@ def demonstrations(data: Path, task: str, count: int) -> list[Path]:
     return files[:count]
 
 
-def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) -> list[dict]:
-    """Export, train and evaluate every policy of `args` on `task`; returns the new results."""
+def run_task(task: str, args: argparse.Namespace, done: set[tuple]) -> list[dict]:
+    """Export, train and evaluate every policy of `args` on `task` whose :func:`settings_key`
+    is not in `done`; returns the new results."""
     from bicoord_drake.runner.rollouts import DIVERGED
 
     work = Path(args.work) / task
     dataset = work / f"dataset_{args.inputs}_{args.demos}"
     files = demonstrations(Path(args.data), task, args.demos)
     export = export_command(files, dataset, args.inputs, common_source(files))
-    todo = [p for p in args.policies if (task, p) not in done]
+    todo = [p for p in args.policies if settings_key(task, p, args) not in done]
     if not todo:
         return []
     if not dataset.exists():
@@ -249,7 +369,7 @@ def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) ->
         run(export, work / "logs" / "export.log")
     results = []
     for policy in todo:
-        output = work / f"{policy}_{args.inputs}_{args.demos}demos_{args.steps}steps"
+        output = work / checkpoint_name(policy, args)
         train = train_command(policy, task, dataset, output, args)
         train_log = work / "logs" / f"train_{output.name}.log"
         train_seconds = trained(output, train)
@@ -277,6 +397,7 @@ def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) ->
                 "demos": len(files),
                 "steps": args.steps,
                 "batch_size": args.batch_size,
+                "settings": run_settings(policy, args),
                 "train_seconds": round(train_seconds, 1),
                 "final_loss": float(losses[-1]) if losses else None,
                 "eval_seconds": round(eval_seconds, 1),
@@ -286,6 +407,8 @@ def run_task(task: str, args: argparse.Namespace, done: set[tuple[str, str]]) ->
                 "TL": report["TL"],
                 "stages": [[s["subgoal"], s["completed"]] for s in report["stages"]],
                 "skipped": len(report["skipped"]),
+                "skipped_seeds": [s["seed"] for s in report["skipped"]],
+                "seeds": [r["seed"] for r in report["rollouts"]],
                 "diverged": diverged,
                 "errors": errors[:3],
                 "commands": {
@@ -316,9 +439,35 @@ def inputs_text(result: dict[str, Any]) -> str:
     return f"images {result.get('resolution', '?')} + robot state"
 
 
+def seeds_text(result: dict[str, Any]) -> str:
+    """The evaluation seeds tried, ``first-last`` (the rollouts' and the skipped ones)."""
+    seeds = list(result.get("seeds") or []) + list(result.get("skipped_seeds") or [])
+    if seeds:
+        return f"{min(seeds)}-{max(seeds)}"
+    eval_seed = settings_of(result)["eval_seed"]
+    skipped = result.get("skipped")
+    if eval_seed is None or not isinstance(skipped, int):
+        return "-"
+    first = 100000 * (1 + eval_seed)
+    return f"{first}-{first + result['n'] + skipped - 1}"
+
+
+def skipped_text(result: dict[str, Any]) -> str:
+    """The evaluation seeds skipped because their expert failed: how many, and which."""
+    seeds = result.get("skipped_seeds")
+    if seeds is None:
+        return str(result.get("skipped", "-"))
+    return f"{len(seeds)}: {', '.join(map(str, seeds))}" if seeds else "0"
+
+
 def markdown(results: list[dict[str, Any]], command: str, notes: str = "") -> str:
     """The baselines table, its settings, `notes` (Markdown) and the exact commands of every
     row."""
+    extras: dict[str, str] = {}  # extra training arguments -> their label in the table
+    for r in results:
+        extra = settings_of(r)["train_args"]
+        if extra and extra not in extras:
+            extras[extra] = f"a{len(extras) + 1}"
     lines = [
         "# Baselines: ACT and Diffusion Policy trained with lerobot-train",
         "",
@@ -327,36 +476,57 @@ def markdown(results: list[dict[str, Any]], command: str, notes: str = "") -> st
         "objects' poses; no images); *images* = `observation.state` and the three cameras at "
         "the generated resolution (the evaluation renders at that resolution). Trained on the "
         "CPU with `lerobot-train` (lerobot's default configuration of each policy plus the "
-        "arguments in the commands below), "
-        "scored with `scripts/evaluate.py` on unseen-split evaluation seeds (from 100000 up; "
-        "seeds whose expert fails are skipped). SR, SSR in percent; TL in control steps of the "
+        "extra arguments of the *train args* column, listed below the table, at the batch size "
+        "and training seed of the commands below), "
+        "scored with `scripts/evaluate.py` on unseen-split evaluation seeds (the *seeds* "
+        "column: the first is 100000 (1 + `--eval-seed`); seeds whose expert fails are skipped, "
+        "the *skipped* column). SR, SSR in percent; TL in control steps of the "
         "successful rollouts; per-stage completion: the share of rollouts in which each stage "
         "counted. Diverged: rollouts that ended when the physics diverged (counted as failures; "
         "bench_expert_physics.md, 'Thin bodies spinning'). Paper DP: the paper's single-task "
         "Diffusion Policy (image-based, GPU, "
-        "RoboTwin 2.0 settings, 100 rollouts), for reference only: the inputs differ.",
+        "RoboTwin 2.0 settings, 100 demonstrations per task, 100 rollouts), for reference "
+        "only: the inputs and the number of demonstrations differ.",
         "",
-        "| task | policy | inputs | demos | train steps | train time | final loss | rollouts "
-        "| diverged | SR | SSR | TL | per-stage completion | paper DP SR / SSR | machine | date |",
-        "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---|---|---|",
+        "| task | policy | inputs | demos | train steps | batch | train args | train time "
+        "| final loss | rollouts | seeds | skipped | diverged | SR | SSR | TL "
+        "| per-stage completion | paper DP SR / SSR | machine | date |",
+        "|---|---|---|---:|---:|---:|---|---:|---:|---:|---|---|---:|---:|---:|---:"
+        "|---|---|---|---|",
     ]
     for r in results:
+        settings = settings_of(r)
         stages = "; ".join(f"{name} {_pct(c)}" for name, c in r["stages"])
         paper = PAPER_DP.get(r["task"])
         paper_text = f"{paper[0]:.1f} / {paper[1]:.1f}" if paper else "-"
         loss = "-" if r["final_loss"] is None else f"{r['final_loss']:.3f}"
+        batch = settings["batch_size"] if settings["batch_size"] is not None else "-"
+        extra = extras.get(settings["train_args"], "-")
         lines.append(
             f"| {r['task']} | {r['policy']} | {inputs_text(r)} | {r['demos']} | {r['steps']} | "
-            f"{r['train_seconds'] / 60:.1f} min | {loss} | {r['n']} | {r.get('diverged', '-')} | "
+            f"{batch} | {extra} | {r['train_seconds'] / 60:.1f} min | {loss} | {r['n']} | "
+            f"{seeds_text(r)} | {skipped_text(r)} | {r.get('diverged', '-')} | "
             f"{_pct(r['SR'])} | "
             f"{_pct(r['SSR'])} | {r['TL'] if r['TL'] is not None else '-'} | {stages} | "
             f"{paper_text} | {r['machine']} | {r['date']} |"
         )
+    if extras:
+        lines += ["", "Extra training arguments (*train args*):", ""]
+        lines += [f"- {label}: `{extra}`" for extra, label in extras.items()]
     if notes.strip():
         lines += ["", notes.strip()]
     lines += ["", "## Commands", ""]
     for r in results:
-        lines += [f"### {r['task']}, {r['policy']} ({inputs_text(r)}), {r['steps']} steps", ""]
+        settings = settings_of(r)
+        label = extras.get(settings["train_args"])
+        what = [f"{r['steps']} steps"]
+        if settings["batch_size"] is not None:
+            what.append(f"batch {settings['batch_size']}")
+        if label:
+            what.append(f"train args {label}")
+        if settings["eval_seed"] is not None:
+            what.append(f"evaluation --seed {settings['eval_seed']}")
+        lines += [f"### {r['task']}, {r['policy']} ({inputs_text(r)}), {', '.join(what)}", ""]
         lines += ["```bash"]
         lines += [r["commands"][k] for k in ("export", "train", "evaluate")]
         lines += ["```", ""]
@@ -448,23 +618,15 @@ def main(argv: list[str] | None = None) -> int:
     results_file = Path(args.work) / "results.jsonl"
     results_file.parent.mkdir(parents=True, exist_ok=True)
     previous = [] if args.force else read_results(results_file)
-    key = (args.inputs, args.demos, args.steps)
-    done = {
-        (r["task"], r["policy"])
-        for r in previous
-        if (r.get("inputs", "state"), r["demos"], r["steps"]) == key
-    }
+    done = {result_key(r) for r in previous}
     for task in [] if args.table_only else args.tasks:
         for result in run_task(task, args, done):
             with open(results_file, "a", encoding="utf-8") as fh:
                 fh.write(json.dumps(result) + "\n")
     command = "python benchmarks/baselines.py " + shlex.join(sys.argv[1:] if argv is None else argv)
-    latest = {
-        (r["task"], r["policy"], r.get("inputs", "state"), r["demos"], r["steps"]): r
-        for r in read_results(results_file)
-    }
+    latest = latest_results(read_results(results_file))
     notes = Path(args.notes).read_text() if args.notes else ""
-    Path(args.out).write_text(markdown(list(latest.values()), command, notes) + "\n")
+    Path(args.out).write_text(markdown(latest, command, notes) + "\n")
     print(f"wrote {args.out}")
     return 0
 

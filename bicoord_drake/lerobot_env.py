@@ -29,6 +29,16 @@ policies read ``observation.state`` and do not miss it. The prompt is the env's
 the step limit is ``_max_episode_steps`` (lerobot stops its rollout there, and so does the
 env).
 
+Early stop (``--env.early_stop=true``; off by default, as in
+:func:`bicoord_drake.env.make_env`): a rollout whose task object has left the table (on the
+floor or outside the workspace: nothing can bring it back) ends at once. lerobot-eval sees it
+``terminated`` (not ``truncated``) with ``info["is_success"]`` False and
+``info["failure_reason"]`` saying which object, where and since when (``final_info`` of the
+vector env), and counts the episode as done there: its success rate is the one without early
+stop. lerobot steps a batch until all of its envs are done (one done early is reset by the
+vector env and runs on, unscored), so the time is saved whole with ``--eval.batch_size=1``.
+``scripts/evaluate.py`` stops early by default.
+
 Seeds: lerobot-eval resets batch ``b`` with seeds ``seed + b * batch_size + i``; the scene seed
 is that plus ``seed_offset`` (default 100000, the benchmark's first evaluation seed), so
 ``--seed=0`` evaluates the scenes ``scripts/evaluate.py`` starts with (it also skips seeds
@@ -88,7 +98,8 @@ class LeRobotBiCoordEnv(gymnasium.ObservationWrapper):
     state only, no camera rendered for the observation). `cameras`: which cameras (``"head,
     left,right"``). `environment_state`: add the task objects' poses. `seed_offset`: added to
     every seed given to ``reset``. Other keywords go to :class:`BiCoordEnv` (``resolution``,
-    ``fps``, ``step_limit``, ``embodiment``, ``action_mode``, ``randomize``, ``split``, ...).
+    ``fps``, ``step_limit``, ``embodiment``, ``action_mode``, ``randomize``, ``split``,
+    ``early_stop``, ...).
     """
 
     def __init__(
@@ -243,7 +254,9 @@ if importlib.util.find_spec("lerobot") is not None:  # lerobot's CLI imports us:
         the step limit (default: the task's at ``--env.fps``); ``--env.embodiment``,
         ``--env.action_mode``, ``--env.randomize``, ``--env.split``; ``--env.seed_offset``
         added to lerobot's seeds (default 100000: ``--seed=0`` gives the benchmark's
-        evaluation seeds).
+        evaluation seeds); ``--env.early_stop=true`` ends a rollout, as a failure, once a task
+        object has left the table (off by default, as in ``make_env``; see the module
+        docstring).
         """
 
         task: str | None = "jigsaw"
@@ -259,6 +272,7 @@ if importlib.util.find_spec("lerobot") is not None:  # lerobot's CLI imports us:
         randomize: bool = False
         split: str = "unseen"
         seed_offset: int = EVAL_SEED_START
+        early_stop: bool = False
         render_mode: str = "rgb_array"
         features: dict[str, PolicyFeature] = field(default_factory=dict)
         features_map: dict[str, str] = field(default_factory=_features_map)
@@ -342,6 +356,7 @@ if importlib.util.find_spec("lerobot") is not None:  # lerobot's CLI imports us:
                 "action_mode": self.action_mode,
                 "randomize": self.randomize,
                 "split": self.split,
+                "early_stop": self.early_stop,
             }
 
 

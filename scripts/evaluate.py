@@ -9,6 +9,7 @@ Examples:
     python scripts/evaluate.py --task jigsaw --policy expert --episodes 3 --video videos/
     python scripts/evaluate.py --task jigsaw --policy lerobot:outputs/train/act_jigsaw
     python scripts/evaluate.py --task jigsaw --policy openpi:gpu-box:8000        # remote server
+    python scripts/evaluate.py --task jigsaw --policy lerobot-dataset:lr/jigsaw --data data/jigsaw
     python scripts/evaluate.py --task jigsaw --policy my_pkg.policies:MyPolicy --backend ray
     python scripts/evaluate.py --scenario scenarios/aloha_50hz.yaml --task jigsaw --policy noop
     python scripts/evaluate.py --task jigsaw --policy noop --set station.kp_scale=2
@@ -20,7 +21,10 @@ the flags given; the split is unseen unless one is set. The task's step limit (T
 
 Policies: a built-in (replay: the recorded actions of the --data episodes; expert: the task's
 planner in closed loop; noop: hold still) or package.module:name - a class with
-reset(instruction) and act(obs) -> action, or a function act(obs). Evaluation seeds start at
+reset(instruction) and act(obs) -> action, or a function act(obs); lerobot:PATH, a LeRobot
+checkpoint; openpi:HOST:PORT, a policy server; lerobot-dataset:DIR, a LeRobot export's own
+actions played back on its episodes' seeds (with --data, the episode files it was exported
+from: each rollout plays the dataset's episode of its seed). Evaluation seeds start at
 100000 * (1 + --seed) (seeds are below 2**32); a seed whose expert fails is skipped and reported
 (the verdict is cached in ~/.cache/bicoord_drake/expert_check/, or $BICOORD_CACHE), except with
 --policy expert, where it is a failed rollout counted in SR and SSR. With --data the rollouts
@@ -73,7 +77,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--policy",
         help="replay | expert | noop | package.module:name | lerobot:PATH (lerobot-train output) "
-        "| openpi:HOST:PORT (a policy server, docs/remote_policies.md); required",
+        "| openpi:HOST:PORT (a policy server, docs/remote_policies.md) | lerobot-dataset:DIR (a "
+        "LeRobot export's actions played back on its seeds, with --data); required",
     )
     parser.add_argument("--data", help="demonstrations (directory or file): their seeds, scenes")
     parser.add_argument(
@@ -167,7 +172,13 @@ def main(argv: list[str] | None = None) -> int:
     total = config.episodes
     try:
         size = action_size_of(config.embodiment, config.action_mode)
-        close_policy(load_policy_for(config.policy, action_size=size))  # fail fast, no simulation
+        policy = load_policy_for(config.policy, action_size=size)  # fail fast, no simulation
+        try:
+            problem = playback_problem(policy, config, find_episodes)
+        finally:
+            close_policy(policy)
+        if problem:
+            return usage(problem)
         if config.data:
             total = min(total, len(find_episodes(config.data, config.task)))
     except (PolicyLoadError, ValueError) as err:
@@ -209,6 +220,31 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(report.format_text())
     return 0
+
+
+def playback_problem(policy, config, find_episodes) -> str | None:
+    """Why a dataset playback (``--policy lerobot-dataset:DIR``) cannot play the evaluation's
+    seeds - those of the --data episodes, else the first evaluation seed - (None when it can,
+    or for any other policy)."""
+    if not config.policy.startswith("lerobot-dataset:"):
+        return None
+    missing_seeds = policy.missing_seeds
+    if config.data:
+        import h5py
+
+        seeds = []
+        for path in find_episodes(config.data, config.task)[: config.episodes]:
+            with h5py.File(path, "r") as f:
+                seeds.append(int(f.attrs["seed"]))
+        problem = missing_seeds(config.task, seeds)
+        return problem and f"{problem} (the --data episodes' seeds are played back)"
+    from bicoord_drake.scenario import evaluation_seed
+
+    problem = missing_seeds(config.task, [evaluation_seed(config.seed)])
+    return problem and (
+        f"{problem}: play them back on their own seeds and scenes with --data and the episode "
+        "files the dataset was exported from (its meta/bicoord_episodes.jsonl names them)"
+    )
 
 
 if __name__ == "__main__":

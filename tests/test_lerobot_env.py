@@ -1,13 +1,15 @@
 """``--env.type=bicoord`` for lerobot-eval and lerobot-train (bicoord_drake/lerobot_env.py):
 the observation layout lerobot reads, the config lerobot's CLI finds after package discovery,
-its vectorised env factory, the prompt, success and the step limit, and a whole lerobot-eval
-run of a tiny ACT checkpoint (30-50 s)."""
+its vectorised env factory, the prompt, success and the step limit, early stop, close() releasing
+the simulator, and a whole lerobot-eval run of a tiny ACT checkpoint (30-50 s)."""
 
+import gc
 import json
 import os
 import shutil
 import subprocess
 import sys
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +68,33 @@ def test_state_observations_and_bad_arguments():
         LeRobotBiCoordEnv(TASK, obs_type="rgb")
     with pytest.raises(ValueError, match="unknown camera 'top'; cameras are head, left, right"):
         LeRobotBiCoordEnv(TASK, cameras="head,top")
+
+
+@pytest.mark.parametrize("level", ["Env", "BiCoordEnv", "LeRobotBiCoordEnv"])
+def test_close_releases_the_simulator(level):
+    """After close() nothing holds the station or the simulator (they are garbage); a reset
+    builds them again."""
+    from bicoord_drake.env import make_env
+
+    if level == "Env":
+        env = make_env(TASK, 100000, render=False, step_limit=2)
+        inner, reset = env, lambda: env.reset(100001)
+    elif level == "BiCoordEnv":
+        env = gymnasium.make(f"bicoord_drake/{TASK}-v0", render=False, step_limit=2)
+        inner, reset = env.unwrapped.bicoord_env, lambda: env.reset(seed=100001)
+    else:
+        env = gymnasium.make(ENV_ID, task=TASK, obs_type="state", step_limit=2)
+        inner, reset = env.bicoord_env, lambda: env.reset(seed=1)
+    reset()
+    refs = [weakref.ref(x) for x in (inner.sim, inner.sim.station, inner.sim.simulator)]
+    env.close()
+    env.close()  # twice is fine
+    gc.collect()
+    assert inner.assembly is None
+    assert [r() for r in refs] == [None, None, None]
+    reset()  # built again
+    assert inner.seed == 100001 and inner.sim is not None
+    env.close()
 
 
 # ------------------------------------------------------------------ with lerobot
@@ -139,6 +168,38 @@ def test_lerobot_finds_the_env_type_and_makes_vectorised_envs(lerobot):
         obs, reward, terminated, truncated, info = vec.step(np.asarray(obs["agent_pos"]))
     assert truncated.all() and not terminated.any()
     assert info["final_info"]["is_success"].tolist() == [False, False]  # what lerobot reads
+    utils.close_envs(envs)
+
+
+def test_an_early_stop_is_a_terminated_failure_with_its_reason(lerobot, monkeypatch):
+    """``--env.early_stop=true``: lerobot-eval's vector env sees the rollout whose task object
+    fell off the table terminated (not truncated), unsuccessful, with the reason in
+    ``final_info``; off by default, as in make_env."""
+    factory, utils = lerobot
+    from lerobot.configs.eval import EvalPipelineConfig
+
+    from bicoord_drake.lerobot_env import BiCoordEnvConfig
+    from bicoord_drake.tasks import registry
+    from tests.runner.test_early_stop import LIMIT, Ledge
+
+    monkeypatch.setitem(registry._TASKS, Ledge.name, Ledge)  # a cube falls off the table
+    assert BiCoordEnvConfig(task=Ledge.name).gym_kwargs["early_stop"] is False
+    args = ["--env.type=bicoord", f"--env.task={Ledge.name}", "--env.obs_type=state"]
+    cfg = _parse(EvalPipelineConfig, [*args, "--env.early_stop=true"]).env
+    assert cfg.early_stop is True and cfg.gym_kwargs["early_stop"] is True
+    envs = factory.make_env(cfg, n_envs=2)
+    vec = envs["bicoord"][0]
+    obs, _ = vec.reset(seed=[0, 1])
+    terminated = truncated = np.zeros(2, dtype=bool)
+    step = 0
+    while not (terminated.any() or truncated.any()) and step < LIMIT:
+        obs, reward, terminated, truncated, info = vec.step(np.asarray(obs["agent_pos"]))
+        step += 1
+    assert step < LIMIT // 2 and terminated.all() and not truncated.any()
+    final = info["final_info"]  # what lerobot-eval reads
+    assert final["is_success"].tolist() == [False, False]
+    for reason in final["failure_reason"]:
+        assert reason.startswith(f"object_left_table at step {step}: 'falling' is "), reason
     utils.close_envs(envs)
 
 

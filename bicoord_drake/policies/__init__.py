@@ -21,7 +21,10 @@ Load one with :func:`load_policy`:
   (:mod:`bicoord_drake.policies.lerobot_policy`; needs torch and lerobot, imported only then);
 - ``"openpi:HOST:PORT"``: a policy server speaking openpi's websocket protocol, its action
   chunks consumed one action per step (:mod:`bicoord_drake.policies.openpi_policy`; needs
-  openpi-client, imported only then).
+  openpi-client, imported only then);
+- ``"lerobot-dataset:DIR"``: a LeRobot export's own actions, played back on the episodes' seeds
+  (the episode of each rollout's task and seed; :mod:`bicoord_drake.policies.dataset_policy`;
+  needs lerobot, imported only then).
 
 A policy may also have ``close()`` (release a model, a connection): :func:`close_policy` calls it.
 :func:`load_policy_for` loads a policy for an environment whose actions have a known size, so
@@ -75,13 +78,17 @@ class FunctionPolicy:
 
 
 def load_policy(spec: str, **kwargs: Any) -> Any:
-    """A policy from a built-in name, ``package.module:name``, ``lerobot:PATH`` or
-    ``openpi:HOST:PORT`` (see the module docstring).
+    """A policy from a built-in name, ``package.module:name``, ``lerobot:PATH``,
+    ``openpi:HOST:PORT`` or ``lerobot-dataset:DIR`` (see the module docstring).
 
     Raises :class:`PolicyLoadError` naming the problem (bad spec, module not importable, missing
     attribute, not a policy, constructor failure).
     """
     spec = str(spec).strip()
+    if spec.startswith("lerobot-dataset:"):
+        from bicoord_drake.policies.dataset_policy import load_dataset_policy
+
+        return load_dataset_policy(spec, **kwargs)
     if spec.startswith("lerobot:"):
         from bicoord_drake.policies.lerobot_policy import load_lerobot_policy
 
@@ -95,7 +102,7 @@ def load_policy(spec: str, **kwargs: Any) -> Any:
     if not _SPEC.match(spec):
         raise PolicyLoadError(
             f"policy spec {spec!r} must be a built-in ({', '.join(BUILTINS)}), "
-            "'package.module:name', 'lerobot:PATH' or 'openpi:HOST:PORT'"
+            "'package.module:name', 'lerobot:PATH', 'openpi:HOST:PORT' or 'lerobot-dataset:DIR'"
         )
     module_name, attr = spec.split(":")
     try:
@@ -169,7 +176,7 @@ def close_policy(policy: Any) -> None:
 
 
 #: The spec prefixes whose policies take ``action_size=`` and refuse another size at load.
-SIZED_PREFIXES = ("lerobot:", "openpi:")
+SIZED_PREFIXES = ("lerobot:", "openpi:", "lerobot-dataset:")
 
 
 def action_size_of(embodiment: str, action_mode: str = "qpos") -> int:
@@ -204,9 +211,10 @@ def env_action_size(env: Any) -> int | None:
 
 def load_policy_for(spec: str, *, action_size: int, **kwargs: Any) -> Any:
     """:func:`load_policy` for an environment whose actions have `action_size` numbers
-    (:func:`action_size_of`): a ``lerobot:`` checkpoint whose actions have another size is
-    refused here, naming both sizes, and an ``openpi:`` server's chunks are checked against it
-    from the first one; other policies load as :func:`load_policy` loads them."""
+    (:func:`action_size_of`): a ``lerobot:`` checkpoint or a ``lerobot-dataset:`` dataset whose
+    actions have another size is refused here, naming both sizes, and an ``openpi:`` server's
+    chunks are checked against it from the first one; other policies load as
+    :func:`load_policy` loads them."""
     spec = str(spec).strip()
     if spec.startswith(SIZED_PREFIXES):
         kwargs = {"action_size": int(action_size), **kwargs}

@@ -22,6 +22,11 @@ Every failed rollout has its reason (``failure``: ``step_limit``, ``object_left_
 ``physics_diverged``, ``invalid_action``, ``policy_raised``, ``simulation_raised``) and the
 report counts them (``failures``).
 
+Actions outside the robot's limits (an arm joint target outside the joint's range, a gripper
+opening outside [0, 1]) are executed as the station can (openings clipped, joints stopped at
+their limits) and counted: per rollout (``out_of_limits``, with the entries and the largest
+excess) and for the evaluation (``out_of_limits`` of the report, a line of the summary).
+
 Scores: SR = successes / N; SSR = (1/N) sum_i sum_j s_j c_ij with c_ij the stage's credit
 (partial credit included: cook 0.25 per roll, exchange_mics 0.5 per mic), the mean of the
 rollouts' ``info["score"]`` - both from :func:`bicoord_drake.metrics.stage_score`; TL = mean
@@ -121,6 +126,24 @@ class EvaluationReport:
                 counts[reason] = counts.get(reason, 0) + 1
         return dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
 
+    @property
+    def out_of_limits(self) -> dict[str, Any]:
+        """Actions outside the robot's limits (:class:`~bicoord_drake.runner.rollouts.
+        LimitCount`): ``rollouts`` that had any, ``actions`` in all, ``per_rollout`` (the count
+        of each rollout, in order), ``entries`` (entry -> actions it was outside in, most
+        first) and ``max_excess`` (the largest excess: rad, or opening units)."""
+        entries: dict[str, int] = {}
+        for r in self.rollouts:
+            for name, n in r.out_of_limits_entries.items():
+                entries[name] = entries.get(name, 0) + n
+        return {
+            "rollouts": sum(1 for r in self.rollouts if r.out_of_limits),
+            "actions": sum(r.out_of_limits for r in self.rollouts),
+            "per_rollout": [r.out_of_limits for r in self.rollouts],
+            "entries": dict(sorted(entries.items(), key=lambda kv: (-kv[1], kv[0]))),
+            "max_excess": max((r.out_of_limits_max for r in self.rollouts), default=0.0),
+        }
+
     def to_json(self) -> dict[str, Any]:
         return {
             "task": self.task,
@@ -136,6 +159,7 @@ class EvaluationReport:
             ],
             "coordination": self.coordination,
             "failures": self.failures,
+            "out_of_limits": self.out_of_limits,
             "skipped": self.skipped,
             "expert_failures": self.expert_failures,
             "rollouts": [r.to_json() for r in self.rollouts],
@@ -199,6 +223,25 @@ class EvaluationReport:
                 f"{lost} of {len(self.rollouts)} rollouts ended early when a task object left "
                 "the table (counted as failures, with the stages done before; --no-early-stop "
                 "runs them to the step limit)"
+            )
+        limits = self.out_of_limits
+        if limits["actions"]:
+            counted = [(r.seed, r.out_of_limits) for r in self.rollouts if r.out_of_limits]
+            lines.append(
+                f"actions outside the joint limits: {limits['actions']} in "
+                f"{limits['rollouts']} of {self.n} rollouts (openings are clipped to [0, 1], "
+                f"joints stop at their limits; at most {limits['max_excess']:.3g} beyond)"
+            )
+            lines.append(
+                "  per rollout: "
+                + ", ".join(f"seed {seed} {n}" for seed, n in counted[:10])
+                + (f" and {len(counted) - 10} more" if len(counted) > 10 else "")
+            )
+            entries = list(limits["entries"].items())
+            lines.append(
+                "  per entry: "
+                + ", ".join(f"{name} {n}" for name, n in entries[:8])
+                + (f" and {len(entries) - 8} more" if len(entries) > 8 else "")
             )
         for r in self.rollouts:
             if r.error:

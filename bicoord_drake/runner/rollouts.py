@@ -146,7 +146,12 @@ class EvaluateConfig(RunConfig):
 class RolloutResult:
     """One rollout: outcome, per-stage completion, and why it failed: `failure` (one of
     :data:`FAILURES`; None for a success) and `error` (what happened, for every failure but the
-    step limit; its traceback when something raised)."""
+    step limit; its traceback when something raised).
+
+    Actions outside the robot's limits (:class:`LimitCount`): `out_of_limits` is how many of
+    the rollout's executed actions had an entry outside them, `out_of_limits_entries` how many
+    of those each entry (``left_waist``, ``right_gripper``, ...) was outside in, and
+    `out_of_limits_max` the largest excess (rad for a joint, opening units for a gripper)."""
 
     seed: int
     success: bool
@@ -161,6 +166,9 @@ class RolloutResult:
     traceback: str | None = None
     video: str | None = None
     seconds: float = 0.0
+    out_of_limits: int = 0
+    out_of_limits_entries: dict[str, int] = field(default_factory=dict)
+    out_of_limits_max: float = 0.0
     left_xyz: np.ndarray | None = field(default=None, repr=False)
     right_xyz: np.ndarray | None = field(default=None, repr=False)
     grippers: np.ndarray | None = field(default=None, repr=False)
@@ -173,6 +181,46 @@ class RolloutResult:
 
 
 # --------------------------------------------------------------------------- rollouts
+#: How far past a limit an action entry may be and still count as within it (round-off of an
+#: action recorded at its limit), rad or opening units.
+LIMIT_SLACK = 1e-6
+
+
+class LimitCount:
+    """Counts the actions of one rollout that are outside the robot's limits: an arm joint
+    target outside the joint's range or a gripper opening outside [0, 1].
+
+    Nothing is refused or changed here: the station clips an opening to [0, 1] and drives an
+    arm joint toward its target until the plant's joint limit stops it, so a policy's target
+    beyond a limit is not executed as given; the count says how often that happened. It reads
+    the joint action in effect after each step (``env.action``: the policy's action in
+    ``qpos`` mode, the inverse kinematics' joint targets with the policy's openings in
+    ``endpose`` mode)."""
+
+    def __init__(self, env: Env) -> None:
+        from bicoord_drake.models.embodiment import SIDES
+
+        arm, layout = env.sim.station.embodiment.arm, env.layout
+        self.low = layout.compose(dict.fromkeys(SIDES, arm.lower), dict.fromkeys(SIDES, 0.0))
+        self.high = layout.compose(dict.fromkeys(SIDES, arm.upper), dict.fromkeys(SIDES, 1.0))
+        self.names = layout.feature_names()
+        self.actions = 0
+        self.entries: dict[str, int] = {}
+        self.max_excess = 0.0
+
+    def update(self, action: np.ndarray) -> None:
+        """Count `action` (the joint action in effect) if an entry is outside its limits."""
+        a = np.asarray(action, dtype=float)
+        excess = np.maximum(self.low - a, a - self.high)
+        outside = np.flatnonzero(excess > LIMIT_SLACK)
+        if outside.size == 0:
+            return
+        self.actions += 1
+        for k in outside:
+            self.entries[self.names[k]] = self.entries.get(self.names[k], 0) + 1
+        self.max_excess = max(self.max_excess, float(excess[outside].max()))
+
+
 def rollout(
     env: Env,
     policy: Any,
@@ -196,6 +244,7 @@ def rollout(
             frames.append(encode_jpeg(o["head_camera"]))
 
     record(obs)
+    limits = LimitCount(env)
     who = "policy"
     try:
         bind_policy(policy, env)
@@ -206,6 +255,7 @@ def rollout(
             action = policy.act(obs)
             who = "simulation"
             obs, _ = env.step(action)
+            limits.update(env.action)
             left.append(tcp[0])
             right.append(tcp[1])
             grippers.append(env.action[env.layout.gripper_indices])
@@ -239,6 +289,9 @@ def rollout(
         error=error,
         failure=failure,
         traceback=tb,
+        out_of_limits=limits.actions,
+        out_of_limits_entries=dict(sorted(limits.entries.items(), key=lambda kv: (-kv[1], kv[0]))),
+        out_of_limits_max=round(limits.max_excess, 6),
         left_xyz=np.array(left).reshape(-1, 3),
         right_xyz=np.array(right).reshape(-1, 3),
         grippers=np.array(grippers).reshape(-1, 2),

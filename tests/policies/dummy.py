@@ -88,3 +88,23 @@ class Spy:
 
     def act(self, obs):
         return obs["joint_state"]
+
+
+class OutOfLimits:
+    """Holds the first observed joint state, but its 1st and 3rd actions send the left waist
+    to 10 rad (past its limit) and its 3rd also opens the right gripper to 1.25 (past 1)."""
+
+    def reset(self, instruction):
+        self.target = None
+        self.step = 0
+
+    def act(self, obs):
+        if self.target is None:
+            self.target = np.asarray(obs["joint_state"], dtype=float)
+        self.step += 1
+        a = self.target.copy()
+        if self.step in (1, 3):
+            a[0] = 10.0
+        if self.step == 3:
+            a[13] = 1.25
+        return a

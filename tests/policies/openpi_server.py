@@ -108,3 +108,26 @@ def numbered_chunk(horizon: int = 4, size: int = 14) -> Infer:
         return {"actions": np.repeat(rows[:, None], size, axis=1), "policy_timing": {"k": k}}
 
     return infer
+
+
+def playback_chunk(actions: np.ndarray, states: np.ndarray, horizon: int = 10) -> Infer:
+    """Serves one recorded episode as chunks, as a policy imitating it perfectly would: request
+    k gets ``actions[k H : (k + 1) H]`` (the last action repeated past the end). The state of
+    each request within the episode is compared with the recorded ``states`` of the chunk's
+    first frame; ``infer.state_errors`` collects those max |errors| (the test asserts on them:
+    raising here would reach the client as the server's traceback)."""
+    actions = np.asarray(actions, dtype=np.float32)
+    states = np.asarray(states, dtype=np.float32)
+    calls = {"n": 0}
+    errors: list[float] = []
+
+    def infer(obs: dict[str, Any]) -> dict[str, Any]:
+        start = horizon * calls["n"]
+        calls["n"] += 1
+        if start < len(states):
+            errors.append(float(np.max(np.abs(np.asarray(obs["state"]) - states[start]))))
+        rows = np.arange(start, start + horizon).clip(max=len(actions) - 1)
+        return {"actions": actions[rows]}
+
+    infer.state_errors = errors  # type: ignore[attr-defined]
+    return infer

@@ -68,7 +68,7 @@ def test_load_policy_for_passes_the_action_size_only_to_sized_policies():
     assert isinstance(load_policy_for("noop", action_size=14), NoopPolicy)
     held = load_policy_for("tests.policies.dummy:Hold", action_size=14, scale=2.0)
     assert held.scale == 2.0
-    assert SIZED_PREFIXES == ("lerobot:", "openpi:")
+    assert SIZED_PREFIXES == ("lerobot:", "openpi:", "lerobot-dataset:")
     assert action_size_of("aloha_viperx") == 14 and action_size_of("aloha_viperx", "endpose") == 16
     with pytest.raises(ValueError, match="action_mode must be"):
         action_size_of("aloha_viperx", "torque")

@@ -31,7 +31,12 @@ from bicoord_drake.policies.openpi_policy import (  # noqa: E402
     RemotePolicyError,
     parse_spec,
 )
-from tests.policies.openpi_server import PolicyServer, hold_chunk, numbered_chunk  # noqa: E402
+from tests.policies.openpi_server import (  # noqa: E402
+    PolicyServer,
+    hold_chunk,
+    numbered_chunk,
+    playback_chunk,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 HEAD = "observation.images.head"
@@ -272,6 +277,35 @@ def test_scripts_evaluate_with_an_openpi_server(tmp_path):
     args[args.index(spec)] = down
     out = subprocess.run(args, capture_output=True, text=True, env=env, cwd=ROOT, timeout=600)
     assert out.returncode == 2 and down.removeprefix("openpi:") in out.stderr
+
+
+def test_scripts_evaluate_scores_a_server_playing_the_export_back(balance_roller_export, tmp_path):
+    """Issue 53, goal 3: an in-process openpi server answering with the LeRobot export's own
+    actions (read with lerobot by the dataset-playback policy) in chunks of 10, evaluated by
+    ``scripts/evaluate.py --policy openpi:HOST:PORT`` on the demonstration's seed: 100 %, and
+    each request's state is the dataset's frame of the chunk's first action."""
+    pytest.importorskip("lerobot.datasets.lerobot_dataset")
+    ex = balance_roller_export
+    (seed,) = ex.seeds
+    frames = load_policy(f"lerobot-dataset:{ex.lerobot}").frames(ex.task, seed)
+    infer = playback_chunk(frames["action"], frames["state"], horizon=10)
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])),
+        "BICOORD_CACHE": str(tmp_path / "cache"),
+    }
+    with PolicyServer(infer) as server:
+        args = [sys.executable, "scripts/evaluate.py", "--task", ex.task, "--data", str(ex.data)]
+        args += ["--policy", f"openpi:127.0.0.1:{server.port}", "--no-render", "--workers", "1"]
+        args += ["--json", "--out", str(tmp_path)]
+        out = subprocess.run(args, capture_output=True, text=True, env=env, cwd=ROOT, timeout=900)
+    assert out.returncode == 0, out.stderr[-3000:]
+    report = json.loads(out.stdout)
+    (rollout,) = report["rollouts"]
+    assert rollout["seed"] == seed and rollout["error"] is None, rollout.get("traceback")
+    assert report["SR"] == 1.0 and rollout["success"]
+    assert len(server.requests) == -(-rollout["steps"] // 10)  # one request per chunk of 10
+    assert max(infer.state_errors) < 1e-4, infer.state_errors  # float32 rounding only
 
 
 # ------------------------------------------------------------------ latency

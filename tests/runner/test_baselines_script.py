@@ -81,15 +81,19 @@ def test_table_rows(baselines):
     text = baselines.markdown([result], "python benchmarks/baselines.py ...")
     row = next(line for line in text.splitlines() if line.startswith("| balance_roller"))
     cells = [c.strip() for c in row.strip("|").split("|")]
-    assert cells[:14] == [
+    assert cells[:18] == [
         "balance_roller",
         "act",
         "state",
         "50",
         "1000",
+        "-",  # batch size: not recorded in this (old) result
+        "-",  # no extra training arguments
         "10.0 min",
         "0.123",
         "50",
+        "-",  # seeds: unknown
+        "-",  # skipped: unknown
         "2",
         "10.0",
         "35.0",
@@ -98,6 +102,8 @@ def test_table_rows(baselines):
         "34.0 / 67.0",
     ]
     assert "lerobot-train t" in text
+    header = next(line for line in text.splitlines() if line.startswith("| task"))
+    assert len(header.split("|")) == len(row.split("|"))
 
 
 def test_notes_stand_between_the_table_and_the_commands(baselines):
@@ -120,7 +126,7 @@ def test_notes_stand_between_the_table_and_the_commands(baselines):
     }
     text = baselines.markdown([result], "cmd", "## Notes\n\nundertrained")
     assert text.index("| jigsaw |") < text.index("undertrained") < text.index("## Commands")
-    assert "| jigsaw | diffusion | state | 50 | 10 | 0.1 min | - | 1 | - |" in text
+    assert "| jigsaw | diffusion | state | 50 | 10 | - | - | 0.1 min | - | 1 | - | - | - |" in text
 
 
 def test_a_finished_training_is_reused_only_by_the_same_command(baselines, tmp_path):
@@ -139,3 +145,153 @@ def test_tasks_are_required_unless_only_the_table_is_rewritten(baselines):
     with pytest.raises(SystemExit):
         baselines.parse_args(["--work", "w", "--out", "o.md"])
     assert baselines.parse_args(["--work", "w", "--out", "o.md", "--table-only"]).tasks == []
+
+
+# ------------------------------------------------------------------ result keys (issue #53, 5)
+ACT_ARGS = "--policy.dim_model=128 --policy.n_heads=4"
+
+
+def _args(baselines, *extra):
+    base = ["--data", "d", "--tasks", "balance_roller", "--work", "w", "--out", "o.md"]
+    return baselines.parse_args([*base, *extra])
+
+
+def _result(baselines, tmp_path, args, policy="act", **fields):
+    """A result as run_task writes it for `args` (its commands built by the script)."""
+    out = tmp_path / baselines.checkpoint_name(policy, args)
+    train = baselines.train_command(policy, "balance_roller", tmp_path / "ds", out, args)
+    evaluate = baselines.evaluate_command("balance_roller", out, tmp_path / "ev", args)
+    result = {
+        "task": "balance_roller",
+        "policy": policy,
+        "inputs": args.inputs,
+        **({"resolution": args.resolution} if args.inputs == "images" else {}),
+        "demos": args.demos,
+        "steps": args.steps,
+        "batch_size": args.batch_size,
+        "settings": baselines.run_settings(policy, args),
+        "train_seconds": 60.0,
+        "final_loss": 0.5,
+        "n": args.eval_episodes,
+        "SR": 0.0,
+        "SSR": 0.1,
+        "TL": None,
+        "stages": [["lift", 0.2]],
+        "skipped": 0,
+        "skipped_seeds": [],
+        "seeds": [100000 * (1 + args.eval_seed) + k for k in range(args.eval_episodes)],
+        "diverged": 0,
+        "errors": [],
+        "commands": {
+            "export": "python scripts/export.py",
+            "train": baselines.shown(train),
+            "evaluate": baselines.shown(evaluate),
+        },
+        "machine": "m",
+        "date": "d",
+    }
+    result.update(fields)
+    return result
+
+
+def test_every_training_and_evaluation_setting_is_in_the_key(baselines):
+    """Two runs that differ in any setting are two results (and two checkpoints); the same
+    settings, written with other spacing, are one."""
+    base = ["--train-args", f"act={ACT_ARGS}"]
+    key = baselines.settings_key("balance_roller", "act", _args(baselines, *base))
+    name = baselines.checkpoint_name("act", _args(baselines, *base))
+    changed = {
+        "batch size": ["--batch-size", "16"],
+        "training seed": ["--train-seed", "7"],
+        "extra arguments": ["--train-args", "act=--policy.dim_model=256"],
+        "evaluation seed": ["--eval-seed", "3"],
+        "evaluation rollouts": ["--eval-episodes", "100"],
+        "demonstrations": ["--demos", "100"],
+        "steps": ["--steps", "50000"],
+        "inputs": ["--inputs", "images"],
+    }
+    for what, extra in changed.items():
+        args = _args(baselines, *base, *extra)
+        if what == "extra arguments":
+            args = _args(baselines, *extra)
+        assert baselines.settings_key("balance_roller", "act", args) != key, what
+        trains_anew = not what.startswith("evaluation")
+        assert (baselines.checkpoint_name("act", args) != name) == trains_anew, what
+    images = _args(baselines, "--inputs", "images", "--resolution", "128x96")
+    other = _args(baselines, "--inputs", "images", "--resolution", "96x72")
+    assert baselines.settings_key("balance_roller", "act", images) != baselines.settings_key(
+        "balance_roller", "act", other
+    )
+    spaced = _args(baselines, "--train-args", "act=--policy.dim_model=128   --policy.n_heads=4")
+    assert baselines.settings_key("balance_roller", "act", spaced) == key
+    # another policy's extra arguments are not this policy's settings
+    both = _args(baselines, *base, "--train-args", "diffusion=--policy.horizon=8")
+    assert baselines.settings_key("balance_roller", "act", both) == key
+    assert set(baselines.SETTINGS) >= {
+        "batch_size",
+        "train_args",
+        "resolution",
+        "eval_seed",
+        "eval_episodes",
+    }
+
+
+def test_a_result_s_key_is_its_run_s_and_old_results_are_read_from_their_commands(
+    baselines, tmp_path
+):
+    args = _args(baselines, "--batch-size", "16", "--train-args", f"act={ACT_ARGS}")
+    result = _result(baselines, tmp_path, args)
+    key = baselines.settings_key("balance_roller", "act", args)
+    assert baselines.result_key(result) == key
+    old = {k: v for k, v in result.items() if k not in ("settings", "skipped_seeds", "seeds")}
+    assert baselines.settings_of(old) == result["settings"]
+    assert baselines.result_key(old) == key
+    diffusion = _args(baselines, "--train-args", "diffusion=--policy.down_dims=[32,64,128]")
+    result = _result(baselines, tmp_path, diffusion, policy="diffusion")
+    old = {k: v for k, v in result.items() if k != "settings"}
+    assert baselines.settings_of(old)["train_args"] == "'--policy.down_dims=[32,64,128]'"
+    assert baselines.result_key(old) == baselines.result_key(result)
+
+
+def test_latest_result_per_key_and_a_rerun_skips_only_equal_keys(baselines, tmp_path):
+    b8, b16 = _args(baselines), _args(baselines, "--batch-size", "16")
+    first = _result(baselines, tmp_path, b8, SR=0.1)
+    other = _result(baselines, tmp_path, b16, SR=0.2)
+    again = _result(baselines, tmp_path, b8, SR=0.3)
+    latest = baselines.latest_results([first, other, again])
+    assert [r["SR"] for r in latest] == [0.3, 0.2]  # one row per key, the last written
+    done = {baselines.result_key(r) for r in [first]}
+    assert baselines.settings_key("balance_roller", "act", b8) in done
+    assert baselines.settings_key("balance_roller", "act", b16) not in done
+    assert baselines.settings_key("balance_roller", "diffusion", b8) not in done
+
+
+def test_the_table_shows_batch_size_extra_arguments_seeds_and_skipped_seeds(baselines, tmp_path):
+    args = _args(baselines, "--batch-size", "16", "--eval-episodes", "3")
+    plain = _result(baselines, tmp_path, args)
+    extra = _args(baselines, "--eval-episodes", "3", "--train-args", f"act={ACT_ARGS}")
+    skipping = _result(
+        baselines,
+        tmp_path,
+        extra,
+        seeds=[100000, 100002, 100004],
+        skipped=2,
+        skipped_seeds=[100001, 100003],
+    )
+    text = baselines.markdown([plain, skipping], "cmd")
+    header = next(line for line in text.splitlines() if line.startswith("| task"))
+    columns = [c.strip() for c in header.strip("|").split("|")]
+    rows = [
+        dict(zip(columns, (c.strip() for c in line.strip("|").split("|")), strict=True))
+        for line in text.splitlines()
+        if line.startswith("| balance_roller")
+    ]
+    assert [r["batch"] for r in rows] == ["16", "8"]
+    assert [r["train args"] for r in rows] == ["-", "a1"]
+    assert f"- a1: `{ACT_ARGS}`" in text
+    assert [r["seeds"] for r in rows] == ["100000-100002", "100000-100004"]
+    assert [r["skipped"] for r in rows] == ["0", "2: 100001, 100003"]
+    assert "### balance_roller, act (state), 20000 steps, batch 8, train args a1" in text
+    # an old result without the seeds: the range from its evaluation seed, count and skips
+    old = {k: v for k, v in skipping.items() if k not in ("settings", "seeds", "skipped_seeds")}
+    assert baselines.seeds_text(old) == "100000-100004" and baselines.skipped_text(old) == "2"
