@@ -57,6 +57,11 @@ stages, so the dependencies of stage ``k`` hold - and scores stage ``k`` and lat
 rollout* is done as soon as stage ``k`` counts (``info["stage_success"]``) or at the step limit,
 counted from the reset; ``stage=0`` is a stage rollout from the initial state.
 
+A demonstration generated with disturbances (:mod:`bicoord_drake.sim.disturbances`) has them
+applied again in a rollout reset from it, at the recorded control steps (``env.disturbances``):
+a push's or knock's force through the plant, a drop's open gripper in place of the commanded
+opening; so its replay reproduces it. A reset without such an episode applies none.
+
 Early stop (``make_env(..., early_stop=True)``; off by default here, on in evaluations): a rollout
 whose task object is lost - nothing can bring it back - is done at once, a failure, with
 ``info["failure_reason"]`` saying which object, where and since when (``"object_left_table at
@@ -91,6 +96,7 @@ from bicoord_drake.scenario import (  # EVAL_SEED_START: re-exported
     load_scenario,
     resolve,
 )
+from bicoord_drake.sim.disturbances import DisturbanceDriver, from_records
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.stages import WorldState
 from bicoord_drake.stages.stage import Stage
@@ -222,6 +228,7 @@ class Env:
         self.failure: str | None = None
         self._lost: LostObjects | None = None
         self._ik: _EndposeIK | None = None
+        self._disturber: DisturbanceDriver | None = None
         self._build(setup)
         self.step_limit = int(step_limit or step_limit_at(self.task, self.config.control_rate))
         self._ready = False
@@ -296,7 +303,14 @@ class Env:
         self.assembly = None
         self.episode = None
         self._ik = None
+        self._disturber = None
         self._ready = False
+
+    @property
+    def disturbances(self) -> tuple:
+        """The disturbances this rollout applies (those of the demonstration it was reset
+        from; :class:`~bicoord_drake.sim.disturbances.Disturbance`)."""
+        return () if self._disturber is None else self._disturber.disturbances
 
     # ---------------------------------------------------------------- reset
     def reset(
@@ -328,6 +342,10 @@ class Env:
             raise ValueError(f"stage must be in [0, {len(self.stages)}), got {stage}")
         self.episode = episode
         self.stage = None if stage is None else int(stage)
+        if self._disturber is not None:
+            self._disturber.clear()
+        recorded = from_records(episode.disturbances) if episode is not None else []
+        self._disturber = DisturbanceDriver(self.sim, recorded) if recorded else None
         stage = self.stage or 0
         home = self.sim.station.embodiment.home_action()
         if stage == 0:
@@ -423,10 +441,13 @@ class Env:
             a = self._endpose_to_qpos(a)
         else:
             self.ik_failed = []
-        self.sim.step(a)
+        executed = a
+        if self._disturber is not None:
+            executed = self._disturber.before_step(self.start_frame + self.steps, a)
+        self.sim.step(executed)
         self.action = a
         self.steps += 1
-        state = WorldState.capture(self.sim, a, self.scene)
+        state = WorldState.capture(self.sim, executed, self.scene)
         self.monitor.update(state)
         if self._lost is not None and not self._goal_reached():
             self.failure = self._lost.update(state, self.steps)

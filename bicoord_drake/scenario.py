@@ -52,6 +52,7 @@ from bicoord_drake.config import (
 )
 from bicoord_drake.models.appearance import Split
 from bicoord_drake.models.layout import EmbodimentName, default_embodiment
+from bicoord_drake.sim.disturbances import DISTURBANCE_KINDS, DisturbanceKind, parse_disturb
 
 if TYPE_CHECKING:
     from bicoord_drake.episode_setup import EpisodeSetup
@@ -213,8 +214,8 @@ class SceneSettings(BaseModel):
         return self
 
 
-#: The order of a scenario's fields in files (``action_noise`` only when it is on: the records
-#: of runs without it are those of before it existed).
+#: The order of a scenario's fields in files (``action_noise`` and ``disturb`` only when they
+#: are on: the records of runs without them are those of before they existed).
 FIELD_ORDER = (
     "task",
     "seed",
@@ -224,6 +225,7 @@ FIELD_ORDER = (
     "embodiment",
     "station",
     "action_noise",
+    "disturb",
 )
 
 
@@ -262,10 +264,25 @@ class Scenario(SceneSettings):
         f"its level; levels in [0, {ACTION_NOISE_MAX:g}]; 0: off",
     )
 
+    disturb: tuple[DisturbanceKind, ...] = Field(
+        (),
+        description="disturbances of the expert's demonstrations (generation), a comma list of "
+        f"kinds ({', '.join(DISTURBANCE_KINDS)}; none: off): each fires once per episode, at a "
+        "step drawn from the seed where it applies (push: a force on a free task object before "
+        "the expert's next plan; drop: a holding gripper forced open; knock: a force on a "
+        "placed object), recorded in the episode file (disturbances/) and re-applied by its "
+        "replay",
+    )
+
     @field_validator("action_noise", mode="before")
     @classmethod
     def _action_noise(cls, value: Any) -> ActionNoise:
         return parse_action_noise(value)
+
+    @field_validator("disturb", mode="before")
+    @classmethod
+    def _disturb(cls, value: Any) -> tuple[str, ...]:
+        return parse_disturb(value)
 
     # ---------------------------------------------------------------- derived values
     @property
@@ -320,6 +337,11 @@ class Scenario(SceneSettings):
         """Whether the expert's executed actions get noise (``action_noise`` is not 0)."""
         return self.action_noise != 0.0
 
+    @property
+    def disturbed(self) -> bool:
+        """Whether the expert's demonstrations get disturbances (``disturb`` is not empty)."""
+        return bool(self.disturb)
+
     def action_noise_level(self, seed: int) -> float:
         """The action-noise level (rad) of the episode of `seed` (:func:`action_noise_draw`)."""
         return action_noise_draw(self.action_noise, seed)[0]
@@ -339,6 +361,8 @@ class Scenario(SceneSettings):
         data["station"].pop("embodiment", None)
         if not self.noisy:
             data.pop("action_noise")
+        if not self.disturbed:
+            data.pop("disturb")
         return {name: data[name] for name in FIELD_ORDER if name in data}
 
     def to_yaml(self) -> str:
@@ -742,6 +766,7 @@ FLAGS: dict[str, tuple[str, ...]] = {
     "split": ("split",),
     "embodiment": ("embodiment",),
     "action_noise": ("action_noise",),
+    "disturb": ("disturb",),
 }
 
 
@@ -806,6 +831,9 @@ def add_scenario_arguments(
         kwargs: dict[str, Any] = {"default": None}
         if name == "action_noise":
             kwargs["metavar"] = "SIGMA|LO-HI"
+            help_text = field_help(path)
+        elif name == "disturb":
+            kwargs["metavar"] = "KIND[,KIND]"
             help_text = field_help(path)
         elif name == "resolution":
             kwargs["metavar"] = "WxH"

@@ -18,6 +18,7 @@ Examples:
     python scripts/generate.py --task jigsaw --set station.kp_scale=2 --config-name stiff
     python scripts/generate.py --task jigsaw --action-noise 0.01  # DART: into .../default_noisy
     python scripts/generate.py --task jigsaw --action-noise 0.005-0.02   # a level per episode
+    python scripts/generate.py --task jigsaw --disturb push    # into .../default_disturbed
     python scripts/generate.py --scenario data/jigsaw/default/data/episode3.hdf5 --out again
     python scripts/generate.py --scenario scenarios/aloha_50hz.yaml --print-scenario
 
@@ -31,7 +32,12 @@ scenario: --scenario EPISODE.hdf5 makes that episode again (only its seed is tri
 whether the actions are the recorded ones, bit for bit. --action-noise SIGMA (rad; or LO-HI,
 one level per episode drawn from its seed) executes the expert's arm joint targets with
 Gaussian noise (DART): joint_action/vector keeps the expert's label, joint_action/executed what
-ran, and the episode is kept only if every stage still verified. Failures and their reasons go to
+ran, and the episode is kept only if every stage still verified. --disturb KIND[,KIND] (push,
+drop, knock) disturbs each episode once per kind, at a step drawn from its seed where the kind
+applies (push: an external force through the plant on a free task object before the expert's
+next plan; drop: a holding gripper forced open; knock: a force on a placed object); the
+disturbance and a recovery row are recorded in the episode file, its replay applies it again,
+and the episode is kept only if every stage still verified. Failures and their reasons go to
 <out>/<task>/<config>/manifest.json; <out>/dataset_<config>.json lists the run's tasks.
 Running the same command again resumes where it stopped. Exit status: 0 when every task has
 its episodes, 1 when some could not be made (or on an error), 2 for bad arguments, 75 when the
@@ -81,6 +87,7 @@ def main(argv: list[str] | None = None) -> int:
             "episodes": "per task",
             "randomize": "into <out>/<task>/randomized by default",
             "action_noise": "into <out>/<task>/<config>_noisy by default",
+            "disturb": "into <out>/<task>/<config>_disturbed by default",
         },
     )
     parser.add_argument("--out", default="data", help="output root (default: data)")
@@ -166,7 +173,9 @@ def main(argv: list[str] | None = None) -> int:
             out=args.out,
             config_name=args.config_name
             or name
-            or default_config_name(scenario.randomize, scenario.embodiment, scenario.noisy),
+            or default_config_name(
+                scenario.randomize, scenario.embodiment, scenario.noisy, scenario.disturbed
+            ),
             max_tries=args.max_tries if args.max_tries is not None else (1 if episode else 0),
             video=not args.no_video,
             workers=args.workers,

@@ -36,16 +36,32 @@ Inside an episode file (T frames, S stages; PRODUCT.md, Data)::
     stages/initial_action            (S, A)       action in effect before that frame (the
                                                   executed one, when recorded)
     stage_index                      (T,) int64
+    disturbances/kind                (K,) str     push, drop or knock (only episodes generated
+                                                  with disturbances: bicoord_drake.sim.
+                                                  disturbances; K of them)
+    disturbances/body                (K,) str     the object pushed, knocked or dropped
+    disturbances/side                (K,) str     a drop's gripper (empty for the others)
+    disturbances/step                (K,) int64   the first control step it acts in
+    disturbances/duration            (K,) int64   control steps it acts for
+    disturbances/wrench              (K, 6)       [torque, force] in the world frame, N m and N
+                                                  (zero for a drop)
+    disturbances/point               (K, 3)       where the force acts, body frame, m
+    stages/recovery/{start,end}      (K,) int64   the recovery from each disturbance: frames
+    stages/recovery/{subgoal,left,right} (K,) str [start, end), from its step to the expert's
+    stages/recovery/score            (K,) float64 next plan (a row beside the stage rows)
     attrs: schema_version, task, seed, instruction, fps, embodiment, success, object_count,
            package_version, config (JSON), scene (JSON), frame_count,
            scenario (YAML: the full scenario that made the episode, bicoord_drake.scenario;
            absent from files written before it was recorded),
-           action_noise (the noise level, rad, of an episode generated with action noise)
+           action_noise (the noise level, rad, of an episode generated with action noise),
+           disturb (the disturbance kinds, a comma list, of an episode generated with them)
 
 The vector layout is the embodiment's (:class:`~bicoord_drake.models.layout.ActionLayout`;
 :attr:`Episode.layout` from the ``embodiment`` attribute). Frame ``t`` holds the observation
 *before* action ``t`` and action ``t`` itself. Replaying ``joint_action/executed`` where it exists,
-else ``joint_action/vector`` (:attr:`Episode.replay_action`), reproduces the episode. Every file is
+else ``joint_action/vector`` (:attr:`Episode.replay_action`), with the recorded disturbances
+applied again (:attr:`Episode.disturbances`; the environment does), reproduces the episode. A
+drop's open gripper is in ``joint_action/executed``. Every file is
 written atomically: a temporary file in the same directory, then ``os.replace``; nothing partial
 ever appears under the final name. The recorder knows nothing about the task it records.
 """
@@ -287,6 +303,10 @@ class EpisodeRecorder:
         self._objects: dict[str, list[np.ndarray]] = {}
         self._plant_state: list[np.ndarray] = []
         self._joints: dict[str, list[float]] = {}
+        #: The disturbances of the episode (mappings of their fields: bicoord_drake.sim.
+        #: disturbances.Disturbance) and the recovery row of each, written with the episode.
+        self.disturbances: list[Mapping[str, Any]] = []
+        self.recovery_rows: list[list] = []
 
     def __len__(self) -> int:
         return len(self._action)
@@ -500,6 +520,7 @@ class EpisodeRecorder:
             self._write_robot(f)
             self._write_objects(f)
             self._write_stages(f, rows)
+            self._write_disturbances(f, T)
             f.attrs.update(root_attrs)
         return path
 
@@ -552,6 +573,32 @@ class EpisodeRecorder:
         before = self.initial_action if self.initial_action is not None else actions[0]
         f["stages/initial_action"] = np.stack([actions[s - 1] if s > 0 else before for s in starts])
 
+    def _write_disturbances(self, f: h5py.File, T: int) -> None:
+        if len(self.recovery_rows) != len(self.disturbances):
+            raise ValueError("one recovery row per disturbance")
+        if not self.disturbances:
+            return
+        items = [dict(d) for d in self.disturbances]
+        g = f.create_group("disturbances")
+        for key in ("kind", "body", "side"):
+            g.create_dataset(key, data=[str(d.get(key, "")) for d in items], dtype=_STR)
+        for key in ("step", "duration"):
+            g[key] = np.array([int(d[key]) for d in items], dtype=np.int64)
+        g["wrench"] = np.array(
+            [[*d.get("torque", (0, 0, 0)), *d.get("force", (0, 0, 0))] for d in items], float
+        ).reshape(-1, 6)
+        g["point"] = np.array([d.get("point", (0, 0, 0)) for d in items], float).reshape(-1, 3)
+        rows = [list(r) for r in self.recovery_rows]
+        for j, row in enumerate(rows):
+            if len(row) != 6 or not 0 <= int(row[0]) < int(row[1]) <= T:
+                raise ValueError(f"recovery row {j} must be [start, end, ...] within [0, {T})")
+        r = f.create_group("stages/recovery")
+        r["start"] = np.array([int(x[0]) for x in rows], dtype=np.int64)
+        r["end"] = np.array([int(x[1]) for x in rows], dtype=np.int64)
+        r["score"] = np.array([float(x[5]) for x in rows], dtype=np.float64)
+        for k, key in ((2, "subgoal"), (3, "left"), (4, "right")):
+            r.create_dataset(key, data=[str(x[k]) for x in rows], dtype=_STR)
+
 
 # --------------------------------------------------------------------------- reader
 @dataclass(eq=False)
@@ -578,6 +625,11 @@ class Episode:
     #: (T, A) the actions the station executed, where they differ from the labels
     #: ``joint_action`` (episodes generated with action noise); None otherwise.
     executed_action: np.ndarray | None = None
+    #: The disturbances the episode was generated with (mappings of the fields of
+    #: :class:`bicoord_drake.sim.disturbances.Disturbance`; empty for a clean episode).
+    disturbances: list[dict[str, Any]] = field(default_factory=list)
+    #: The recovery row of each disturbance, ``[start, end, subgoal, left, right, score]``.
+    recovery: list[list] = field(default_factory=list)
 
     @property
     def replay_action(self) -> np.ndarray:
@@ -728,7 +780,46 @@ def read_episode(path: str | Path, images: bool = True) -> Episode:
             initial_action=get("stages/initial_action", optional=True),
             joints={n: f[f"joints/{n}/position"][()] for n in f.get("joints", {})},
             executed_action=get("joint_action/executed", optional=True),
+            disturbances=_read_disturbances(f),
+            recovery=_read_rows(f["stages/recovery"]) if "stages/recovery" in f else [],
         )
+
+
+def _read_rows(g: h5py.Group) -> list[list]:
+    """Rows ``[start, end, subgoal, left, right, score]`` of a group of row datasets."""
+    return [
+        [int(s), int(e), str(sg), str(lt), str(rt), float(sc)]
+        for s, e, sg, lt, rt, sc in zip(
+            g["start"][()],
+            g["end"][()],
+            g["subgoal"].asstr()[()],
+            g["left"].asstr()[()],
+            g["right"].asstr()[()],
+            g["score"][()],
+            strict=True,
+        )
+    ]
+
+
+def _read_disturbances(f: h5py.File) -> list[dict[str, Any]]:
+    """The ``disturbances/`` group as mappings of the Disturbance fields (none: empty)."""
+    if "disturbances" not in f:
+        return []
+    g = f["disturbances"]
+    kinds, bodies, sides = (g[k].asstr()[()] for k in ("kind", "body", "side"))
+    return [
+        {
+            "kind": str(kinds[j]),
+            "step": int(g["step"][j]),
+            "duration": int(g["duration"][j]),
+            "body": str(bodies[j]),
+            "side": str(sides[j]),
+            "force": tuple(float(v) for v in g["wrench"][j, 3:]),
+            "torque": tuple(float(v) for v in g["wrench"][j, :3]),
+            "point": tuple(float(v) for v in g["point"][j]),
+        }
+        for j in range(len(kinds))
+    ]
 
 
 # --------------------------------------------------------------------------- sidecars

@@ -34,7 +34,7 @@ import tempfile
 import time
 import traceback
 from collections import Counter
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, Literal
@@ -72,24 +72,39 @@ from bicoord_drake.scenario import (
     action_noise_draw,
     parse_action_noise,
 )
+from bicoord_drake.sim.disturbances import (
+    Disturbance,
+    DisturbanceDriver,
+    ExpertTrace,
+    NoDisturbanceWindow,
+    disturbance_records,
+    parse_disturb,
+    plan_disturbances,
+    recovery_row,
+)
 from bicoord_drake.sim.frame_renderer import FrameRenderer
 from bicoord_drake.stages import WorldState
 from bicoord_drake.tasks import get_task
-from bicoord_drake.tasks.base import Task, step_limit_at
+from bicoord_drake.tasks.base import Task, WorldView, step_limit_at
 
 
 def default_config_name(
-    randomize: bool = False, embodiment: str | None = None, noisy: bool = False
+    randomize: bool = False,
+    embodiment: str | None = None,
+    noisy: bool = False,
+    disturbed: bool = False,
 ) -> str:
     """The settings directory under ``<out>/<task>/``: ``default`` or ``randomized`` for the
     default robot, ``<embodiment>`` or ``<embodiment>_randomized`` for another one; with
-    action noise (`noisy`) ``_noisy`` after it."""
+    action noise (`noisy`) ``_noisy`` after it, with disturbances (`disturbed`) then
+    ``_disturbed``."""
     name = embodiment or default_embodiment()
     if name == default_embodiment():
         base = "randomized" if randomize else "default"
     else:
         base = f"{name}_randomized" if randomize else name
-    return f"{base}_noisy" if noisy else base
+    base = f"{base}_noisy" if noisy else base
+    return f"{base}_disturbed" if disturbed else base
 
 
 class GenerateConfig(RunConfig):
@@ -123,16 +138,22 @@ class GenerateConfig(RunConfig):
     @classmethod
     def _default_config_name(cls, data: Any) -> Any:
         """No config name: ``default``, or the robot's name for another robot than the
-        default, ``_noisy`` after it with action noise (scripts/generate.py also names
-        randomized runs apart)."""
+        default, ``_noisy`` after it with action noise, ``_disturbed`` with disturbances
+        (scripts/generate.py also names randomized runs apart)."""
         data = cls._fold(data)
         if isinstance(data, dict) and data.get("config_name") is None:
-            embodiment = data["scenario"].get("embodiment")
+            scenario = data["scenario"]
+            embodiment = scenario.get("embodiment")
             try:
-                noisy = parse_action_noise(data["scenario"].get("action_noise", 0.0)) != 0.0
+                noisy = parse_action_noise(scenario.get("action_noise", 0.0)) != 0.0
             except ValueError:
                 noisy = False  # the scenario's validation reports it
-            return {**data, "config_name": default_config_name(False, embodiment, noisy)}
+            try:
+                disturbed = bool(parse_disturb(scenario.get("disturb")))
+            except ValueError:
+                disturbed = False  # the scenario's validation reports it
+            name = default_config_name(False, embodiment, noisy, disturbed)
+            return {**data, "config_name": name}
         return data
 
     @model_validator(mode="after")
@@ -178,6 +199,8 @@ class GenerateConfig(RunConfig):
             settings["split"] = self.split
         if self.scenario.noisy:
             settings["action_noise"] = self.scenario.to_dict()["action_noise"]
+        if self.scenario.disturbed:
+            settings["disturb"] = list(self.scenario.disturb)
         station = _other_station_settings(self.station)
         if station != _other_station_settings(StationConfig()):
             settings["station"] = station
@@ -224,6 +247,10 @@ class EpisodeResult:
     timings: dict[str, float] = field(default_factory=dict)
     #: The action-noise level (rad) the expert's actions were executed with (0: none).
     action_noise: float = 0.0
+    #: The disturbances the episode ran with (none: a clean run), and the stage-annotation
+    #: row of the recovery from each (:func:`~bicoord_drake.sim.disturbances.recovery_row`).
+    disturbances: list[Disturbance] = field(default_factory=list)
+    recovery: list[list] = field(default_factory=list)
 
 
 @dataclass
@@ -262,7 +289,10 @@ class NoisyExecution:
 
 
 def run_expert(
-    setup: EpisodeSetup, depth: bool = False, action_noise: ActionNoise = 0.0
+    setup: EpisodeSetup,
+    depth: bool = False,
+    action_noise: ActionNoise = 0.0,
+    disturb: Sequence[str] = (),
 ) -> EpisodeResult:
     """Run the expert of `setup`'s episode in physics and verify every stage.
 
@@ -285,10 +315,128 @@ def run_expert(
     (:func:`~bicoord_drake.tasks.base.follow`). At 0 nothing changes: no noise generator, and
     the same actions bit for bit.
 
+    With `disturb` (disturbance kinds, the scenario's ``disturb``:
+    :mod:`bicoord_drake.sim.disturbances`), a clean run of the expert on the same seed (with
+    the same action noise) first shows where each kind may fire (its plan boundaries, what
+    touches what: :class:`~bicoord_drake.sim.disturbances.ExpertTrace`; its seconds are the
+    ``trace`` timing); one disturbance of each kind is drawn from the seed in its window
+    (:func:`~bicoord_drake.sim.disturbances.plan_disturbances`) and the episode is run with
+    them. The result carries them and a recovery row for each: from the disturbance's step to
+    the next step at which the expert read the measured world to plan on. A seed without a
+    window for a kind fails (``no_disturbance_window``). Without `disturb` nothing changes.
+
     Any failure of the seed (planning, a stage not verified, an annotation that cannot be made)
     is returned with its reason."""
     seed, station_config = setup.seed, setup.station
     clock = Stopwatch()
+    kinds = parse_disturb(disturb) if disturb else ()
+    schedule: list[Disturbance] | None = None
+    if kinds:
+        t0 = time.perf_counter()
+        clean = _simulate(setup, action_noise, Stopwatch(), schedule=[], trace=True)
+        try:
+            schedule = plan_disturbances(kinds, seed, clean.trace, clean.episode.station)
+        except NoDisturbanceWindow as err:
+            clock.add("trace", time.perf_counter() - t0)
+            return EpisodeResult(
+                seed, False, f"no_disturbance_window: {err}", timings=clock.seconds()
+            )
+        clock.add("trace", time.perf_counter() - t0)
+        del clean  # its station: one at a time
+    run = _simulate(setup, action_noise, clock, schedule=schedule)
+
+    def failed(reason: str) -> EpisodeResult:
+        return EpisodeResult(seed, False, reason, timings=clock.seconds())
+
+    if run.failure is not None:
+        return failed(run.failure)
+    monitor, recorder = run.episode.monitor, run.recorder
+    if not monitor.success:
+        stages = zip(monitor.stages, monitor.completed(), strict=True)
+        return failed(f"stage_not_verified: {', '.join(s.subgoal for s, ok in stages if not ok)}")
+    try:
+        rows = monitor.annotations(len(recorder))
+    except ValueError as err:  # cannot happen when success holds; never a crash of the run
+        return failed(f"annotation: {err}")
+    recovery = []
+    for d in schedule or ():
+        end = min((b for b in run.reads if b >= d.end), default=len(recorder))
+        recovery.append(recovery_row(d, min(end, len(recorder))))
+    if schedule:
+        recorder.disturbances = disturbance_records(schedule)
+        recorder.recovery_rows = recovery
+    if station_config.render and station_config.cameras.names:
+        render_cameras(recorder, run.episode.scene, station_config, depth, clock)
+    return EpisodeResult(
+        seed,
+        True,
+        recorder=recorder,
+        rows=rows,
+        instruction=setup.instruction(),
+        scene=run.episode.scene,
+        timings=clock.seconds(),
+        action_noise=0.0 if run.noise is None else run.noise.level,
+        disturbances=list(schedule or ()),
+        recovery=recovery,
+    )
+
+
+class _WatchedView(WorldView):
+    """The expert's world view, noting each step at which the expert reads the measured world
+    (its plan boundaries: :func:`~bicoord_drake.tasks.base.follow` syncs there)."""
+
+    def __init__(self, sim: Any, reads: set[int]) -> None:
+        super().__init__(sim)
+        self._reads = reads
+
+    def _read(self) -> None:
+        self._reads.add(self._sim.steps)
+
+    def object_poses(self) -> dict[str, np.ndarray]:
+        self._read()
+        return super().object_poses()
+
+    def object_pose(self, name: str) -> np.ndarray:
+        self._read()
+        return super().object_pose(name)
+
+    def object_transforms(self) -> dict:
+        self._read()
+        return super().object_transforms()
+
+    def finger_contacts(self) -> dict[str, set[str]]:
+        self._read()
+        return super().finger_contacts()
+
+    def state(self, action: np.ndarray) -> WorldState:
+        self._read()
+        return super().state(action)
+
+
+@dataclass
+class _Simulated:
+    """One physics run of an expert (:func:`_simulate`)."""
+
+    episode: Any  # the Assembly
+    recorder: EpisodeRecorder
+    noise: NoisyExecution | None
+    failure: str | None = None
+    #: The steps at which the expert read the world (only with a disturbance schedule).
+    reads: set[int] = field(default_factory=set)
+    trace: ExpertTrace | None = None
+
+
+def _simulate(
+    setup: EpisodeSetup,
+    action_noise: ActionNoise,
+    clock: Stopwatch,
+    schedule: list[Disturbance] | None = None,
+    trace: bool = False,
+) -> _Simulated:
+    """Run `setup`'s expert in physics with the stage monitor watching (no cameras). With a
+    `schedule` (a list, maybe empty), the expert's world reads are noted and the disturbances
+    applied; with `trace`, every frame's facts are recorded too (:class:`ExpertTrace`)."""
+    seed, station_config = setup.seed, setup.station
     with clock("build"):
         episode = assemble(setup.without_cameras())
         task, scene, sim, monitor = episode.task, episode.scene, episode.sim, episode.monitor
@@ -297,19 +445,23 @@ def run_expert(
             initial_action=episode.embodiment.home_action(),
             layout=episode.layout,
         )
-        instruction = setup.instruction()
     action = executed = episode.embodiment.home_action()
     limit = step_limit_at(task, station_config.control_rate)
     noise = None
     if action_noise:
         arm = episode.embodiment.arm
         noise = NoisyExecution.for_episode(action_noise, seed, episode.layout, arm.lower, arm.upper)
-
-    def failed(reason: str) -> EpisodeResult:
-        return EpisodeResult(seed, False, reason, timings=clock.seconds())
-
+    run = _Simulated(episode, recorder, noise)
+    view, driver, tracer = episode.view, None, None
+    if schedule is not None:
+        view = _WatchedView(sim, run.reads)
+        driver = DisturbanceDriver(sim, schedule) if schedule else None
+        if trace:
+            tracer = run.trace = ExpertTrace(sim)
+            tracer.reads = run.reads
+    record_executed = noise is not None or any(d.kind == "drop" for d in schedule or ())
     try:
-        expert = iter(task.expert(scene, episode.view))
+        expert = iter(task.expert(scene, view))
         while True:
             with clock("planning"):
                 next_action = next(expert, None)
@@ -317,38 +469,26 @@ def run_expert(
                 break
             action = executed = next_action
             if len(recorder) >= limit:
-                return failed(f"step_limit: expert exceeded {limit} steps")
+                run.failure = f"step_limit: expert exceeded {limit} steps"
+                return run
             if noise is not None:
                 executed = noise.apply(action)
+            if driver is not None:
+                executed = driver.before_step(len(recorder), executed)
+            if tracer is not None:
+                tracer.capture()
             with clock("record"):
-                recorder.capture(sim, action, executed=None if noise is None else executed)
+                recorder.capture(sim, action, executed=executed if record_executed else None)
             with clock("physics"):
                 sim.step(executed)
             with clock("monitor"):
                 monitor.update(WorldState.capture(sim, executed, scene))
     except PlanningError as err:
-        return failed(f"planning: {err}")
+        run.failure = f"planning: {err}"
+        return run
     with clock("monitor"):
         monitor.finish(WorldState.capture(sim, executed, scene))
-    if not monitor.success:
-        stages = zip(monitor.stages, monitor.completed(), strict=True)
-        return failed(f"stage_not_verified: {', '.join(s.subgoal for s, ok in stages if not ok)}")
-    try:
-        rows = monitor.annotations(len(recorder))
-    except ValueError as err:  # cannot happen when success holds; never a crash of the run
-        return failed(f"annotation: {err}")
-    if station_config.render and station_config.cameras.names:
-        render_cameras(recorder, scene, station_config, depth, clock)
-    return EpisodeResult(
-        seed,
-        True,
-        recorder=recorder,
-        rows=rows,
-        instruction=instruction,
-        scene=scene,
-        timings=clock.seconds(),
-        action_noise=0.0 if noise is None else noise.level,
-    )
+    return run
 
 
 def render_cameras(
@@ -625,8 +765,12 @@ def produce_episode(config: GenerateConfig, seed: int, staging: str | None) -> S
     quiet_worker(config.verbose)
     task = get_task(config.task)
     try:
+        disturb = {"disturb": config.scenario.disturb} if config.scenario.disturbed else {}
         result = run_expert(
-            config.episode_setup(seed), depth=config.depth, action_noise=config.action_noise
+            config.episode_setup(seed),
+            depth=config.depth,
+            action_noise=config.action_noise,
+            **disturb,
         )
     except Exception as exc:  # noqa: BLE001 - recorded in the manifest with the traceback's tail
         result = EpisodeResult(seed, False, f"crashed: {format_failure(exc)}")
@@ -667,7 +811,7 @@ def _save(
         config=config.record(),
         scene=result.scene,
         scenario=config.scenario.for_episode(task.name, result.seed).to_yaml(),
-        extra={"action_noise": result.action_noise} if result.action_noise else {},
+        extra=_extra_attrs(result),
     )
     return save_episode(
         layout,
@@ -679,6 +823,17 @@ def _save(
         instructions_unseen=task.instructions("unseen"),
         video=config.video and config.render,
     )
+
+
+def _extra_attrs(result: EpisodeResult) -> dict[str, Any]:
+    """The episode file's attributes beyond the usual ones: the action-noise level and the
+    disturbance kinds (comma list), each only when on."""
+    extra: dict[str, Any] = {}
+    if result.action_noise:
+        extra["action_noise"] = result.action_noise
+    if result.disturbances:
+        extra["disturb"] = ",".join(dict.fromkeys(d.kind for d in result.disturbances))
+    return extra
 
 
 class _TaskRun:
