@@ -146,11 +146,12 @@ def test_carry_together_holds_the_relative_tcp_pose_on_one_timing(ctx):
     assert np.array_equal(left, right) and left.all()
     vmax = np.tile(ctx.arm_limits.velocity, 2)
     assert np.max(np.abs(np.diff(carry.q, axis=0)) / ctx.dt / vmax) <= 1
-    release = sk.release_together(ctx, release=0.4)
+    release = sk.release_together(ctx, gentle=True)
     r = release.info["release_index"]
+    n = ctx.steps(sk.gentle_release_time(ctx))
     assert np.array_equal(release.openings[:, 0], release.openings[:, 1])
-    assert release.openings[r, 0] == 1.0 and release.openings[6, 0] == 1.0
-    assert release.openings[5, 0] < 1.0
+    assert release.openings[r, 0] == 1.0 and release.openings[n, 0] == 1.0
+    assert release.openings[n - 1, 0] < 1.0
     assert not ctx.model.held
 
 
@@ -204,7 +205,7 @@ def test_two_hands_lift_and_carry_a_bar_in_physics():
     X = ctx.model.held_pose("left", ctx.q)
     down = RigidTransform(X.rotation(), [*X.translation()[:2], TABLE_TOP + 0.021])
     lower = sk.carry_together(ctx, down, ignore=["bar"])
-    release = sk.release_together(ctx, release=0.33)
+    release = sk.release_together(ctx, gentle=True)
     for action in np.vstack([lower.actions(), release.actions()]):
         sim.step(action)
     bar = sim.object_poses()["bar"]
