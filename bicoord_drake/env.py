@@ -60,7 +60,9 @@ counted from the reset; ``stage=0`` is a stage rollout from the initial state.
 A demonstration generated with disturbances (:mod:`bicoord_drake.sim.disturbances`) has them
 applied again in a rollout reset from it, at the recorded control steps (``env.disturbances``):
 a push's or knock's force through the plant, a drop's open gripper in place of the commanded
-opening; so its replay reproduces it. A reset without such an episode applies none.
+opening; so its replay reproduces it. A reset without such an episode applies none;
+``reset(..., disturbances=[...])`` applies the ones given instead (an evaluation with
+``disturb`` does: the disturbances the expert's demonstration of the seed gets).
 
 Early stop (``make_env(..., early_stop=True)``; off by default here, on in evaluations): a rollout
 whose task object is lost - nothing can bring it back - is done at once, a failure, with
@@ -75,6 +77,7 @@ not watched. Nothing else ends a rollout early: a slow policy keeps its whole st
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, Literal
 
@@ -96,7 +99,7 @@ from bicoord_drake.scenario import (  # EVAL_SEED_START: re-exported
     load_scenario,
     resolve,
 )
-from bicoord_drake.sim.disturbances import DisturbanceDriver, from_records
+from bicoord_drake.sim.disturbances import Disturbance, DisturbanceDriver, from_records
 from bicoord_drake.sim.simulation import Simulation
 from bicoord_drake.stages import WorldState
 from bicoord_drake.stages.stage import Stage
@@ -319,6 +322,7 @@ class Env:
         *,
         stage: int | None = None,
         episode: Episode | str | Path | None = None,
+        disturbances: Sequence[Disturbance] | None = None,
     ) -> dict[str, Any]:
         """Start a rollout and return the first observation.
 
@@ -326,6 +330,11 @@ class Env:
         With `episode` (a demonstration file or :class:`Episode`): its seed and scene; with
         `stage` = k, the simulator state recorded at the start of stage k, and the rollout is a
         *stage rollout*: done when stage k counts (stages before k count as done).
+
+        `disturbances` (:class:`~bicoord_drake.sim.disturbances.Disturbance`, steps counted
+        from the episode's first frame) are applied in this rollout instead of those the
+        episode recorded; an empty sequence applies none. None (the default): the episode's
+        recorded disturbances, none without an episode.
         """
         self._ready = False
         if self.assembly is None:  # closed: build the simulation again
@@ -344,8 +353,9 @@ class Env:
         self.stage = None if stage is None else int(stage)
         if self._disturber is not None:
             self._disturber.clear()
-        recorded = from_records(episode.disturbances) if episode is not None else []
-        self._disturber = DisturbanceDriver(self.sim, recorded) if recorded else None
+        if disturbances is None:
+            disturbances = from_records(episode.disturbances) if episode is not None else []
+        self._disturber = DisturbanceDriver(self.sim, disturbances) if disturbances else None
         stage = self.stage or 0
         home = self.sim.station.embodiment.home_action()
         if stage == 0:

@@ -271,7 +271,8 @@ class Scenario(SceneSettings):
         "step drawn from the seed where it applies (push: a force on a free task object before "
         "the expert's next plan; drop: a holding gripper forced open; knock: a force on a "
         "placed object), recorded in the episode file (disturbances/) and re-applied by its "
-        "replay",
+        "replay; in an evaluation, the same disturbances in a second, disturbed rollout of "
+        "each seed",
     )
 
     @field_validator("action_noise", mode="before")

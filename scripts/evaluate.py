@@ -13,6 +13,7 @@ Examples:
     python scripts/evaluate.py --task jigsaw --policy my_pkg.policies:MyPolicy --backend ray
     python scripts/evaluate.py --scenario scenarios/aloha_50hz.yaml --task jigsaw --policy noop
     python scripts/evaluate.py --task jigsaw --policy noop --set station.kp_scale=2
+    python scripts/evaluate.py --task jigsaw --policy my_pkg.policies:MyPolicy --disturb push
 
 The rollouts' settings - task, seeds, randomization, split, robot, rate, cameras, physics - are
 a scenario (docs/scenarios.md): the values of a --scenario file, then --set FIELD=VALUE, then
@@ -33,6 +34,13 @@ A rollout ends at success, at the step limit, or early - a failure, with its rea
 report - when nothing can be saved: a task object on the floor or outside the workspace, or the
 physics diverged (--no-early-stop: only divergence ends one early). A slow policy keeps its
 whole step limit.
+--disturb KIND[,KIND] (push, drop, knock) evaluates robustness: each seed is rolled out twice,
+clean and disturbed (two rollouts per seed, and one traced expert run per seed, cached with the
+expert check), and the report gives SR, SSR, TL and the stages of both side by side. A seed's
+disturbances are those the expert's demonstration of that seed gets (generate.py --disturb:
+drawn from the seed in a window found by a clean expert run); a seed without a window for a kind
+has no disturbed rollout (listed with the reason, not a failure). With --data, a demonstration
+generated with the kinds supplies its recorded ones, and its clean rollout gets none.
 The report (report.json, stage_success.png) goes to <out>/<task>/<policy>/. Locally or with
 --backend ray the rollouts run in parallel (one environment and policy instance per worker; by
 default one per core, --workers 1 runs them in this process); the report is the same as a
@@ -72,6 +80,7 @@ def main(argv: list[str] | None = None) -> int:
             "seed": "here SEED <= 42948",
             "fps": "with --data: each file's own, and its physics",
             "embodiment": "with --data: the demonstrations' robot",
+            "disturb": "here: every seed is rolled out clean and disturbed, scores side by side",
         },
     )
     parser.add_argument(
@@ -186,6 +195,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from tqdm import tqdm
 
+    total *= 2 if config.disturb else 1  # a clean and a disturbed rollout per seed
     bar = tqdm(total=total, unit="rollout", dynamic_ncols=True, file=sys.stderr)
 
     def progress(result, message: str) -> None:

@@ -15,6 +15,8 @@ stage_index per frame, the three cameras as videos, the instruction as the task.
 --environment-state adds observation.environment_state, the task objects' poses (xyz + wxyz per
 object, in the scene's order; names in meta/info.json), the privileged state small policies
 train on; --no-images leaves the cameras out (needed for episodes generated with --no-render).
+When an episode was generated with --disturb, every frame gets `disturbed` (int8: 1 from a
+disturbance's step to the end of its recovery row, else 0; 0 throughout clean episodes).
 v3.0 is written by lerobot's LeRobotDataset; v2.1 in lerobot's v2.1 layout. Needs the [lerobot]
 extra (see the README). --check loads the result with LeRobotDataset (a v2.1 export after
 converting it with lerobot's converter in a temporary directory) and compares it with the source.

@@ -22,11 +22,20 @@ pair; the dataset's ``robot_type`` is the embodiment)::
                                (:mod:`bicoord_drake.data.environment_state`: order and names,
                                ``<object>_<field>`` or, where the episodes' object names
                                differ (jigsaw), ``object_<i>_<field>``; in ``meta/info.json``)
+    disturbed                  (1,)   int8, only in a dataset with a disturbed episode
+                               (generated with ``disturb``): 1 on the frames of a disturbance
+                               and the expert's recovery from it (each recovery row of
+                               ``stages/recovery``: frames [start, end), from the disturbance's
+                               step to the expert's next plan), else 0 (every frame of a clean
+                               episode). Training code can weight or filter these frames; a
+                               LeRobot policy does not take it as an input (not an
+                               ``observation.*`` feature)
     task                       the episode's instruction
 
 The dataset's fps is the episodes' recorded rate (:func:`dataset_fps`; episodes of different
 rates are refused). ``meta/bicoord_episodes.jsonl`` adds per episode its source file, seed
-and stage rows ``[start, end, subgoal, left, right, score]``. The dataset is built in a
+and stage rows ``[start, end, subgoal, left, right, score]`` (and for a disturbed episode its
+``disturbances`` and ``recovery`` rows). The dataset is built in a
 temporary directory beside ``out`` and renamed when complete.
 """
 
@@ -37,7 +46,7 @@ import json
 import re
 import shutil
 import tempfile
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -146,7 +155,27 @@ class ExportResult:
 
 # --------------------------------------------------------------------------- features
 NUMERIC = ("observation.state", "action", "observation.endpose", "stage_index")
-"""The numeric features every export has (``observation.environment_state`` is optional)."""
+"""The numeric features every export has (``observation.environment_state`` and
+``disturbed`` are optional: :data:`OPTIONAL`)."""
+DISTURBED = "disturbed"
+"""The per-frame marker of disturbed and recovery frames (only in a dataset with a disturbed
+episode)."""
+OPTIONAL = (ENVIRONMENT_STATE, DISTURBED)
+
+
+def disturbed_frames(episode: Episode) -> np.ndarray:
+    """(T,) int8: 1 on the frames of each recovery row of `episode` (``[start, end)``: from a
+    disturbance's step to the end of the expert's recovery from it), 0 elsewhere; all 0 for a
+    clean episode."""
+    marker = np.zeros(episode.length, dtype=np.int8)
+    for start, end, *_ in episode.recovery:
+        marker[int(start) : int(end)] = 1
+    return marker
+
+
+def is_disturbed(episode: Episode) -> bool:
+    """Whether `episode` was generated with disturbances (it records some)."""
+    return bool(getattr(episode, "disturbances", None) or getattr(episode, "recovery", None))
 
 
 def episode_state_objects(episode: Episode) -> tuple[str, ...]:
@@ -168,9 +197,11 @@ def lerobot_features(
     *,
     images: bool = True,
     environment_state: bool = False,
+    disturbed: bool = False,
 ) -> dict[str, dict[str, Any]]:
     """The LeRobot feature dictionary for episodes shaped like ``episode`` (its robot's action
-    layout, its cameras and image size; its task objects with `environment_state`)."""
+    layout, its cameras and image size; its task objects with `environment_state`; the
+    ``disturbed`` marker with `disturbed`)."""
     if dtype not in DTYPES:
         raise ValueError(f"unknown dtype {dtype!r}; choose one of {', '.join(DTYPES)}")
     layout = layout_of(episode.attrs["embodiment"])  # as Episode.layout
@@ -192,6 +223,8 @@ def lerobot_features(
     if environment_state:
         names = feature_names(episode_state_objects(episode))
         features[ENVIRONMENT_STATE] = {"dtype": dtype, "shape": (len(names),), "names": names}
+    if disturbed:
+        features[DISTURBED] = {"dtype": "int8", "shape": (1,), "names": None}
     for cam in sorted(episode.rgb) if images else ():
         if cam not in CAMERAS:
             raise ValueError(f"{episode.path}: unknown camera {cam!r}; known: {sorted(CAMERAS)}")
@@ -205,10 +238,15 @@ def lerobot_features(
 
 
 def frame_values(
-    episode: Episode, t: int, dtype: str = "float32", objects: tuple[str, ...] | None = None
+    episode: Episode,
+    t: int,
+    dtype: str = "float32",
+    objects: tuple[str, ...] | None = None,
+    disturbed: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """The non-image feature values of frame ``t`` (with the environment state of `objects`
-    if given)."""
+    if given, and the ``disturbed`` marker of frame t from `disturbed`, the episode's
+    :func:`disturbed_frames`, if given)."""
     values = {
         "observation.state": episode.joint_state[t].astype(dtype),
         "action": episode.joint_action[t].astype(dtype),
@@ -220,6 +258,8 @@ def frame_values(
     if objects is not None:
         poses = {name: episode.objects[name][t] for name in objects}
         values[ENVIRONMENT_STATE] = environment_state(poses, objects, dtype)
+    if disturbed is not None:
+        values[DISTURBED] = np.array([disturbed[t]], dtype=np.int8)
     return values
 
 
@@ -228,19 +268,25 @@ def _objects(episode: Episode, features: dict[str, Any]) -> tuple[str, ...] | No
     return episode_state_objects(episode) if ENVIRONMENT_STATE in features else None
 
 
+def _marker(episode: Episode, features: Mapping[str, Any]) -> np.ndarray | None:
+    """The episode's disturbed-frame marker if `features` has it."""
+    return disturbed_frames(episode) if DISTURBED in features else None
+
+
 def _frames(episode: Episode, features: dict[str, Any]) -> Iterator[dict[str, Any]]:
     dtype = features["action"]["dtype"]
     objects = _objects(episode, features)
+    marker = _marker(episode, features)
     cams = [c for c in sorted(episode.rgb) if CAMERAS[c] in features]
     for t in range(episode.length):
-        frame: dict[str, Any] = frame_values(episode, t, dtype, objects)
+        frame: dict[str, Any] = frame_values(episode, t, dtype, objects, marker)
         for cam in cams:
             frame[CAMERAS[cam]] = episode.image(cam, t)
         yield frame
 
 
 def _episode_extras(index: int, episode: Episode) -> dict[str, Any]:
-    return {
+    extras = {
         "episode_index": index,
         "source": str(episode.path),
         "task_name": episode.task,
@@ -248,6 +294,10 @@ def _episode_extras(index: int, episode: Episode) -> dict[str, Any]:
         "instruction": episode.instruction,
         "stages": episode.stages,
     }
+    if is_disturbed(episode):  # a clean episode's line stays as it was
+        extras["disturbances"] = [dict(d) for d in episode.disturbances]
+        extras["recovery"] = episode.recovery
+    return extras
 
 
 # --------------------------------------------------------------------------- inputs
@@ -345,8 +395,10 @@ def export_lerobot(
     out (a state-only dataset; episodes generated without rendering need it);
     ``environment_state`` adds ``observation.environment_state``, the task objects' poses;
     ``max_episodes`` exports only the first that many episode files (natural order: the first
-    seeds of a generated directory). Raises ``FileExistsError`` if ``out`` exists,
-    ``ValueError`` on bad input.
+    seeds of a generated directory). When an episode was generated with disturbances, every
+    frame gets the ``disturbed`` marker (:func:`disturbed_frames`; 0 throughout a clean
+    episode); without one the dataset is what it was before the marker existed. Raises
+    ``FileExistsError`` if ``out`` exists, ``ValueError`` on bad input.
     """
     if codebase not in CODEBASES:
         raise ValueError(f"unknown codebase {codebase!r}; choose one of {', '.join(CODEBASES)}")
@@ -360,7 +412,11 @@ def export_lerobot(
         paths, images=images, environment_state=environment_state, max_episodes=max_episodes
     )
     features = lerobot_features(
-        episodes[0], dtype, images=images, environment_state=environment_state
+        episodes[0],
+        dtype,
+        images=images,
+        environment_state=environment_state,
+        disturbed=any(is_disturbed(e) for e in episodes),
     )
     if environment_state:
         names = layout_names([episode_state_objects(e) for e in episodes])
@@ -418,7 +474,9 @@ def _write_v30(
             # lerobot stores a (1,)-shaped feature as a scalar column and hands each (1,) array
             # to int(), which numpy >= 2.3 refuses: give it the scalars it stores.
             buffer = dataset.episode_buffer
-            buffer["stage_index"] = [int(v[0]) for v in buffer["stage_index"]]
+            for key in ("stage_index", DISTURBED):
+                if key in buffer:
+                    buffer[key] = [int(v[0]) for v in buffer[key]]
             dataset.save_episode(parallel_encoding=False)
     finally:
         dataset.finalize()
@@ -441,7 +499,7 @@ def _write_v21(
     fps = dataset_fps(episodes)
     dtype = features["action"]["dtype"]
     features = {**features, **DEFAULT_FEATURES}
-    numeric = [k for k in (*NUMERIC, ENVIRONMENT_STATE) if k in features]
+    numeric = [k for k in (*NUMERIC, *OPTIONAL) if k in features]
     video_keys = [k for k, f in features.items() if f["dtype"] == "video"]
     table_features = {k: f for k, f in features.items() if f["dtype"] != "video"}
     hf_features = get_hf_features_from_features(table_features)
@@ -451,8 +509,8 @@ def _write_v21(
     for index, episode in enumerate(episodes):
         task_index = tasks.setdefault(episode.instruction, len(tasks))
         T = episode.length
-        objects = _objects(episode, features)
-        values = [frame_values(episode, t, dtype, objects) for t in range(T)]
+        objects, marker = _objects(episode, features), _marker(episode, features)
+        values = [frame_values(episode, t, dtype, objects, marker) for t in range(T)]
         columns: dict[str, Any] = {k: np.stack([v[k] for v in values]) for k in numeric}
         columns["timestamp"] = (np.arange(T) / fps).astype(np.float32).reshape(T, 1)
         columns["frame_index"] = np.arange(T, dtype=np.int64).reshape(T, 1)
@@ -569,7 +627,7 @@ def check_export(
     Numeric features are compared in full; images on ``images_per_episode`` evenly spaced frames
     per episode (all frames if None).
     """
-    numeric = tuple(k for k in (*NUMERIC, ENVIRONMENT_STATE) if k in dataset.meta.features)
+    numeric = tuple(k for k in (*NUMERIC, *OPTIONAL) if k in dataset.meta.features)
     dtype = dataset.meta.features["action"]["dtype"]
     # read the arrow columns (datasets' numpy formatter imports a torchvision API gone in 0.25+)
     table = dataset.hf_dataset.data
@@ -592,7 +650,8 @@ def check_export(
             continue
         order = rows[np.argsort(columns["frame_index"].reshape(-1)[rows])]
         state_of = episode_state_objects(episode) if ENVIRONMENT_STATE in numeric else None
-        source = [frame_values(episode, t, dtype, state_of) for t in range(episode.length)]
+        marker = disturbed_frames(episode) if DISTURBED in numeric else None
+        source = [frame_values(episode, t, dtype, state_of, marker) for t in range(episode.length)]
         for key in numeric:
             want = np.stack([s[key] for s in source])
             got = columns[key][order].reshape(want.shape)

@@ -34,6 +34,19 @@ steps of the successful rollouts (None when none succeeded). In a stage evaluati
 succeeds when stage k counts and scores sum only stages k and later (the earlier ones were
 given).
 
+Robustness (``disturb``: the scenario's disturbance kinds, :mod:`bicoord_drake.sim.
+disturbances`): every seed is rolled out twice, clean and disturbed, and the report gives both
+side by side (:attr:`EvaluationReport.disturbed`, :func:`side_by_side`; ``--disturb`` costs two
+rollouts per seed). A seed's disturbances are those the expert's demonstration of that seed
+gets: drawn from the seed in the windows of a traced clean run of the expert on the rollout's
+episode (:func:`~bicoord_drake.runner.generate.trace_expert`, as generation draws them). That
+run is the expert check (cached with its verdict; with the expert policy or without the check
+it runs for the disturbances alone). With ``data``, a demonstration generated with the kinds
+gives its recorded disturbances, and its clean rollout is clean. A seed without a window for a
+kind has no disturbed rollout: it is listed with the reason (the disturbed report's
+``skipped``), not counted as a failure. Every disturbed rollout records its disturbances (kind,
+body, step, ...).
+
 Rollouts run in this process with one worker, otherwise as backend jobs
 (:mod:`bicoord_drake.runner.evaluate_parallel`); the settings, the rollout and the expert check
 both paths use are in :mod:`bicoord_drake.runner.rollouts` (their names are re-exported here).
@@ -49,7 +62,7 @@ from typing import Any
 
 import numpy as np
 
-from bicoord_drake.data.episode import package_version, read_episode, write_json
+from bicoord_drake.data.episode import Episode, package_version, read_episode, write_json
 from bicoord_drake.env import Env
 from bicoord_drake.metrics import (
     coordination_by_test,
@@ -67,12 +80,14 @@ from bicoord_drake.runner.rollouts import (
     EvaluateConfig,
     ExpertCheck,
     RolloutResult,
+    demonstration_disturbances,
     evaluation_seed,
     find_episodes,
     make_evaluation_env,
     rollout,
     rollout_station,
 )
+from bicoord_drake.sim.disturbances import from_records, schedule_of
 from bicoord_drake.tasks import get_task
 from bicoord_drake.tasks.base import Task
 
@@ -86,6 +101,7 @@ __all__ = [
     "find_episodes",
     "plot_stage_success",
     "rollout",
+    "side_by_side",
     "unmet_stages",
 ]
 
@@ -110,6 +126,11 @@ class EvaluationReport:
     report_path: Path | None = None
     plot_path: Path | None = None
     seconds: float = 0.0
+    #: With disturbances: their kinds, and the report of the disturbed rollouts (on the seeds
+    #: of these, the clean ones; `skipped` there: the seeds without a disturbed rollout, and
+    #: why). Its scores stand beside these (:func:`side_by_side`).
+    disturb: tuple[str, ...] = ()
+    disturbed: EvaluationReport | None = None
 
     @property
     def n(self) -> int:
@@ -144,11 +165,9 @@ class EvaluationReport:
             "max_excess": max((r.out_of_limits_max for r in self.rollouts), default=0.0),
         }
 
-    def to_json(self) -> dict[str, Any]:
+    def _scores_json(self) -> dict[str, Any]:
+        """What the clean and the disturbed rollouts' reports both have."""
         return {
-            "task": self.task,
-            "policy": self.policy,
-            "stage": self.stage,
             "n": self.n,
             "SR": self.sr,
             "SSR": self.ssr,
@@ -163,6 +182,31 @@ class EvaluationReport:
             "skipped": self.skipped,
             "expert_failures": self.expert_failures,
             "rollouts": [r.to_json() for r in self.rollouts],
+        }
+
+    def to_json(self) -> dict[str, Any]:
+        """report.json. With disturbances, also ``disturb`` (the kinds) and ``side_by_side``
+        (:func:`side_by_side`) after the clean scores, and ``disturbed`` (the disturbed
+        rollouts' scores, stages, failures, skipped seeds and rollouts, each with its
+        ``disturbances``) after the clean rollouts."""
+        scores = self._scores_json()
+        if self.disturbed is not None:
+            head = {k: scores.pop(k) for k in ("n", "SR", "SSR", "TL")}
+            scores = {
+                **head,
+                "disturb": list(self.disturb),
+                "side_by_side": side_by_side(self, self.disturbed),
+                **scores,
+                "disturbed": {
+                    **self.disturbed._scores_json(),
+                    "plot": str(self.disturbed.plot_path) if self.disturbed.plot_path else None,
+                },
+            }
+        return {
+            "task": self.task,
+            "policy": self.policy,
+            "stage": self.stage,
+            **scores,
             "report": str(self.report_path) if self.report_path else None,
             "plot": str(self.plot_path) if self.plot_path else None,
             "seconds": round(self.seconds, 3),
@@ -171,29 +215,85 @@ class EvaluationReport:
         }
 
     def format_text(self) -> str:
-        """The human summary: scores, the per-stage completion table, failures, files."""
-
-        def pct(v: float | None) -> str:
-            return "-" if v is None else f"{100 * v:.1f} %"
-
+        """The human summary: scores, the per-stage completion table, failures, files; with
+        disturbances, the clean and the disturbed rollouts' side by side."""
         where = f" from stage {self.stage}" if self.stage is not None else ""
-        lines = [
-            f"{self.task} | policy {self.policy}{where} | {self.n} rollouts"
-            + (f" | {len(self.skipped)} seeds skipped" if self.skipped else ""),
-            f"SR {pct(self.sr)}   SSR {pct(self.ssr)}   "
-            f"TL {'-' if self.tl is None else f'{self.tl:.1f}'}",
-            "",
-            "| k | stage | score | completed |",
-            "|---:|---|---:|---:|",
-        ]
+        d = self.disturbed
+        if d is None:
+            lines = [
+                f"{self.task} | policy {self.policy}{where} | {self.n} rollouts"
+                + (f" | {len(self.skipped)} seeds skipped" if self.skipped else ""),
+                f"SR {_pct(self.sr)}   SSR {_pct(self.ssr)}   TL {_steps(self.tl)}",
+                "",
+                "| k | stage | score | completed |",
+                "|---:|---|---:|---:|",
+            ]
+        else:
+            lines = self._side_by_side_lines(d, where)
         first = self.stage or 0
         for k, (s, c) in enumerate(zip(self.stages, self.stage_completion, strict=True)):
-            shown = "given" if k < first else pct(c)
+            shown = "given" if k < first else _pct(c)
+            if d is not None:
+                shown += f" | {_pct(d.stage_completion[k]) if d.rollouts else '-'}"
             lines.append(f"| {k} | {s['subgoal']} | {s['score']:.2f} | {shown} |")
+        lines += self._notes()
+        if d is not None:
+            lines += d._notes(disturbed=True)
+            described = [
+                f"seed {r.seed} " + ", ".join(_describe(x) for x in r.disturbances)
+                for r in d.rollouts
+            ]
+            if described:
+                lines.append(
+                    "disturbances: "
+                    + "; ".join(described[:10])
+                    + (f" and {len(described) - 10} more" if len(described) > 10 else "")
+                )
+        files = [str(p) for p in (self.report_path, self.plot_path) if p]
+        if d is not None and d.plot_path:
+            files.append(str(d.plot_path))
+        if files:
+            lines.append("written: " + ", ".join(files))
+        return "\n".join(lines)
+
+    def _side_by_side_lines(self, d: EvaluationReport, where: str) -> list[str]:
+        """The head of a summary with disturbances: the scores of the clean and the disturbed
+        rollouts in two columns, the same on the seeds that have both, the stages' header."""
+        both = side_by_side(self, d)
+        kinds = ",".join(self.disturb)
+        lines = [
+            f"{self.task} | policy {self.policy}{where} | {self.n} rollouts clean, {d.n} "
+            f"disturbed ({kinds}), two per seed"
+            + (f" | {len(self.skipped)} seeds skipped" if self.skipped else "")
+            + (f" | {len(d.skipped)} seeds without a disturbed rollout" if d.skipped else ""),
+            f"| | clean | disturbed ({kinds}) |",
+            "|---|---:|---:|",
+            f"| rollouts | {self.n} | {d.n} |",
+            f"| SR | {_pct(self.sr)} | {_pct(d.sr)} |",
+            f"| SSR | {_pct(self.ssr)} | {_pct(d.ssr)} |",
+            f"| TL | {_steps(self.tl)} | {_steps(d.tl)} |",
+        ]
+        paired = both["paired"]
+        if paired["n"] and paired["n"] != self.n:
+            lines.append(
+                f"on the {paired['n']} seeds with both: SR {_pct(paired['SR']['clean'])} clean, "
+                f"{_pct(paired['SR']['disturbed'])} disturbed; SSR "
+                f"{_pct(paired['SSR']['clean'])} clean, {_pct(paired['SSR']['disturbed'])} "
+                "disturbed"
+            )
+        lines += ["", "| k | stage | score | clean | disturbed |", "|---:|---|---:|---:|---:|"]
+        return lines
+
+    def _notes(self, disturbed: bool = False) -> list[str]:
+        """The lines under the stage table: coordination, skipped seeds, the expert's failures,
+        failures by reason, early ends, out-of-limit actions and each rollout's error (of the
+        disturbed rollouts, said so)."""
+        what = "disturbed rollouts" if disturbed else "rollouts"
+        lines = []
         if self.coordination:
             c = self.coordination
             lines.append(
-                "\ncoordination of the rollouts: "
+                f"\ncoordination of the {what}: "
                 + ", ".join(
                     f"{k} {v:.2f}"
                     for k, v in c.items()
@@ -201,26 +301,41 @@ class EvaluationReport:
                 )
             )
         for s in self.skipped:
-            lines.append(f"skipped seed {s['seed']}: {s['reason']}")
+            if disturbed:
+                lines.append(f"no disturbed rollout of seed {s['seed']}: {s['reason']}")
+            else:
+                lines.append(f"skipped seed {s['seed']}: {s['reason']}")
         if self.expert_failures is not None:
-            lines.append(
-                f"expert policy: no seed is skipped; {len(self.expert_failures)} of {self.n} "
-                "seeds the expert failed count as failures in SR and SSR"
-            )
+            if disturbed:
+                lines.append(
+                    f"expert policy: {len(self.expert_failures)} of {self.n} disturbed "
+                    "rollouts failed (the expert did not recover)"
+                )
+            else:
+                lines.append(
+                    f"expert policy: no seed is skipped; {len(self.expert_failures)} of "
+                    f"{self.n} seeds the expert failed count as failures in SR and SSR"
+                )
             for f in self.expert_failures:
-                lines.append(f"  expert failed seed {f['seed']}: {f['reason']}")
+                lines.append(
+                    f"  expert failed {'disturbed ' if disturbed else ''}seed {f['seed']}: "
+                    f"{f['reason']}"
+                )
         if self.failures:
-            lines.append("failures: " + ", ".join(f"{why} {n}" for why, n in self.failures.items()))
+            lines.append(
+                ("failures of the disturbed rollouts: " if disturbed else "failures: ")
+                + ", ".join(f"{why} {n}" for why, n in self.failures.items())
+            )
         diverged = sum(1 for r in self.rollouts if (r.error or "").startswith(DIVERGED))
         if diverged:
             lines.append(
-                f"{diverged} of {len(self.rollouts)} rollouts ended when the physics diverged "
+                f"{diverged} of {len(self.rollouts)} {what} ended when the physics diverged "
                 "(counted as failures, with the stages done before)"
             )
         lost = self.failures.get(OBJECT_LEFT_TABLE, 0)
         if lost:
             lines.append(
-                f"{lost} of {len(self.rollouts)} rollouts ended early when a task object left "
+                f"{lost} of {len(self.rollouts)} {what} ended early when a task object left "
                 "the table (counted as failures, with the stages done before; --no-early-stop "
                 "runs them to the step limit)"
             )
@@ -229,8 +344,9 @@ class EvaluationReport:
             counted = [(r.seed, r.out_of_limits) for r in self.rollouts if r.out_of_limits]
             lines.append(
                 f"actions outside the joint limits: {limits['actions']} in "
-                f"{limits['rollouts']} of {self.n} rollouts (openings are clipped to [0, 1], "
-                f"joints stop at their limits; at most {limits['max_excess']:.3g} beyond)"
+                f"{limits['rollouts']} of {self.n} {what} "
+                "(openings are clipped to [0, 1], joints stop at their limits; at most "
+                f"{limits['max_excess']:.3g} beyond)"
             )
             lines.append(
                 "  per rollout: "
@@ -245,11 +361,71 @@ class EvaluationReport:
             )
         for r in self.rollouts:
             if r.error:
-                lines.append(f"seed {r.seed} failed: {r.error}")
-        files = [str(p) for p in (self.report_path, self.plot_path) if p]
-        if files:
-            lines.append("written: " + ", ".join(files))
-        return "\n".join(lines)
+                lines.append(f"{'disturbed ' if disturbed else ''}seed {r.seed} failed: {r.error}")
+        return lines
+
+
+def _pct(v: float | None) -> str:
+    return "-" if v is None else f"{100 * v:.1f} %"
+
+
+def _steps(v: float | None) -> str:
+    return "-" if v is None else f"{v:.1f}"
+
+
+def _describe(record: dict[str, Any]) -> str:
+    """``push on 'block' (1.2 N) at step 14`` of a rollout's disturbance record."""
+    (d,) = from_records([record])
+    return f"{d.describe()} at step {d.step}"
+
+
+def side_by_side(clean: EvaluationReport, disturbed: EvaluationReport) -> dict[str, Any]:
+    """The clean and the disturbed rollouts' scores side by side: ``n``, ``SR``, ``SSR``,
+    ``TL`` and each stage's completion as ``{"clean": ..., "disturbed": ...}``, the seeds each
+    skipped, and ``paired``: SR and SSR of both on the seeds that have both rollouts (the
+    disturbed rollouts' seeds, unless a clean rollout is missing), with their number ``n``."""
+
+    def pair(a: Any, b: Any) -> dict[str, Any]:
+        return {"clean": a, "disturbed": b}
+
+    def key(r: RolloutResult) -> tuple[int, str | None]:  # demonstrations may share a seed
+        return (r.seed, r.episode)
+
+    first = clean.stage or 0
+    scores = [s["score"] for s in clean.stages]
+
+    def rates(rollouts: list[RolloutResult]) -> tuple[float | None, float | None]:
+        if not rollouts:
+            return None, None
+        credit = np.array([r.credit for r in rollouts], dtype=float)
+        return (
+            success_rate([r.success for r in rollouts]),
+            stage_success_rate(scores, credit, first),
+        )
+
+    disturbed_keys = {key(r) for r in disturbed.rollouts}
+    paired_clean = [r for r in clean.rollouts if key(r) in disturbed_keys]
+    clean_keys = {key(r) for r in paired_clean}
+    paired_disturbed = [r for r in disturbed.rollouts if key(r) in clean_keys]
+    (sr_c, ssr_c), (sr_d, ssr_d) = rates(paired_clean), rates(paired_disturbed)
+    stages = []
+    for k, s in enumerate(clean.stages):
+        d = disturbed.stage_completion[k] if disturbed.rollouts else None
+        stages.append({"subgoal": s["subgoal"], **pair(clean.stage_completion[k], d)})
+    return {
+        "kinds": list(clean.disturb),
+        "n": pair(clean.n, disturbed.n),
+        "SR": pair(clean.sr, disturbed.sr),
+        "SSR": pair(clean.ssr, disturbed.ssr),
+        "TL": pair(clean.tl, disturbed.tl),
+        "skipped": pair(len(clean.skipped), len(disturbed.skipped)),
+        "stages": stages,
+        "paired": {
+            "n": len(paired_clean),
+            "SR": pair(sr_c, sr_d),
+            "SSR": pair(ssr_c, ssr_d),
+        },
+    }
 
 
 # --------------------------------------------------------------------------- evaluation
@@ -294,14 +470,39 @@ def _evaluate_with(
         if progress:
             progress(result, message)
 
-    def video_path(seed: int) -> Path | None:
+    kinds = config.disturb
+    # with disturbances: each seed's disturbed rollout, or why it has none
+    disturbed: list[RolloutResult] = []
+    not_disturbed: list[dict[str, Any]] = []
+
+    def disturbed_rollout(env: Env, seed: int, drawn: dict, episode: Episode | None) -> None:
+        schedule, missing = schedule_of(drawn, kinds)
+        if missing is not None:
+            not_disturbed.append({"seed": seed, "reason": missing})
+            note(None, f"seed {seed}: no disturbed rollout")
+            return
+        result = rollout(
+            env,
+            policy,
+            seed=None if episode is not None else seed,
+            episode=episode,
+            video=video_path(seed, disturbed=True),
+            disturbances=schedule,
+        )
+        disturbed.append(result)
+        note(result, f"seed {seed} disturbed: {'success' if result.success else 'failure'}")
+
+    def video_path(seed: int, disturbed: bool = False) -> Path | None:
         if video_dir is None:
             return None
         suffix = f"_stage{config.stage}" if config.stage is not None else ""
+        suffix += "_disturbed" if disturbed else ""
         return video_dir / f"{task.name}_seed{seed}{suffix}.mp4"
 
     if config.parallel:
-        rollouts, skipped, env = run_parallel(task, config, note, video_path)
+        (rollouts, skipped, env), (disturbed, not_disturbed) = run_parallel(
+            task, config, note, video_path
+        )
     elif config.data:
         paths = find_episodes(config.data, task.name)[: config.episodes]
         env = None
@@ -322,14 +523,23 @@ def _evaluate_with(
                 episode=episode,
                 stage=config.stage,
                 video=video_path(episode.seed),
+                disturbances=() if kinds else None,  # clean, even on a disturbed demonstration
             )
             rollouts.append(result)
             note(result, f"{path.name}: {'success' if result.success else 'failure'}")
+            if kinds:
+                note(None, f"{path.name}: disturbances")
+                drawn = demonstration_disturbances(task, config, episode)
+                disturbed_rollout(env, episode.seed, drawn, episode)
     else:
         # The expert evaluated against itself: a seed its expert fails is one of its failures,
         # never skipped (the rollout is the expert check).
         checked = config.expert_check and config.policy != "expert"
         check = ExpertCheck.for_config(task, config) if checked else None
+        # the disturbances come with the expert check (one traced run per seed, cached)
+        draws = None
+        if kinds:
+            draws = check if check is not None else ExpertCheck.for_config(task, config)
         max_tries = config.max_tries or 3 * config.episodes
         seed = evaluation_seed(config.seed)
         env = None
@@ -349,16 +559,24 @@ def _evaluate_with(
             result = rollout(env, policy, seed=seed, video=video_path(seed))
             rollouts.append(result)
             note(result, f"seed {seed}: {'success' if result.success else 'failure'}")
+            if draws is not None:
+                note(None, f"disturbances, seed {seed}")
+                disturbed_rollout(env, seed, draws.disturbances(seed), None)
             seed += 1
     report = _report(task, config, rollouts, skipped, env)
+    if kinds:
+        report.disturb = kinds
+        report.disturbed = _report(task, config, disturbed, not_disturbed, env)
     if env is not None and hasattr(env, "close"):
         env.close()
     if config.policy == "expert":
-        report.expert_failures = [
-            {"seed": r.seed, "reason": r.error or unmet_stages(report.stages, r)}
-            for r in rollouts
-            if not r.success
-        ]
+        for part in (report, report.disturbed):
+            if part is not None:
+                part.expert_failures = [
+                    {"seed": r.seed, "reason": r.error or unmet_stages(part.stages, r)}
+                    for r in part.rollouts
+                    if not r.success
+                ]
     report.seconds = time.perf_counter() - t_start
     _write_outputs(report, config)
     return report
@@ -464,11 +682,18 @@ def _write_outputs(report: EvaluationReport, config: EvaluateConfig) -> None:
     report.report_path = root / "report.json"
     if report.rollouts:
         report.plot_path = plot_stage_success(report, root / "stage_success.png")
+    disturbed = report.disturbed
+    if disturbed is not None and disturbed.rollouts:
+        path = root / "stage_success_disturbed.png"
+        disturbed.plot_path = plot_stage_success(
+            disturbed, path, f"disturbed: {','.join(report.disturb)}"
+        )
     write_json(report.report_path, report.to_json())
 
 
-def plot_stage_success(report: EvaluationReport, path: str | Path) -> Path:
-    """Bar chart of the share of rollouts that completed each stage (the paper's Figure 5)."""
+def plot_stage_success(report: EvaluationReport, path: str | Path, note: str = "") -> Path:
+    """Bar chart of the share of rollouts that completed each stage (the paper's Figure 5);
+    `note` is added to the title."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -488,6 +713,7 @@ def plot_stage_success(report: EvaluationReport, path: str | Path) -> Path:
     ax.set_ylim(0, 110)
     ax.set_ylabel("rollouts that completed the stage (%)")
     where = f", from stage {report.stage}" if report.stage is not None else ""
+    where += f", {note}" if note else ""
     ax.set_title(f"{report.task} - {report.policy}{where} (N = {report.n})", fontsize=10)
     path = Path(path)
     with atomic_path(path) as tmp:

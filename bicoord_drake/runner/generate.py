@@ -81,6 +81,7 @@ from bicoord_drake.sim.disturbances import (
     parse_disturb,
     plan_disturbances,
     recovery_row,
+    schedule_of,
 )
 from bicoord_drake.sim.frame_renderer import FrameRenderer
 from bicoord_drake.stages import WorldState
@@ -317,13 +318,14 @@ def run_expert(
 
     With `disturb` (disturbance kinds, the scenario's ``disturb``:
     :mod:`bicoord_drake.sim.disturbances`), a clean run of the expert on the same seed (with
-    the same action noise) first shows where each kind may fire (its plan boundaries, what
-    touches what: :class:`~bicoord_drake.sim.disturbances.ExpertTrace`; its seconds are the
-    ``trace`` timing); one disturbance of each kind is drawn from the seed in its window
-    (:func:`~bicoord_drake.sim.disturbances.plan_disturbances`) and the episode is run with
-    them. The result carries them and a recovery row for each: from the disturbance's step to
-    the next step at which the expert read the measured world to plan on. A seed without a
-    window for a kind fails (``no_disturbance_window``). Without `disturb` nothing changes.
+    the same action noise: :func:`trace_expert`) first shows where each kind may fire (its
+    plan boundaries, what touches what: :class:`~bicoord_drake.sim.disturbances.ExpertTrace`;
+    its seconds are the ``trace`` timing); one disturbance of each kind is drawn from the seed
+    in its window (:func:`~bicoord_drake.sim.disturbances.plan_disturbances`) and the episode
+    is run with them. The result carries them and a recovery row for each: from the
+    disturbance's step to the next step at which the expert read the measured world to plan
+    on. A seed without a window for a kind fails (``no_disturbance_window``). Without
+    `disturb` nothing changes.
 
     Any failure of the seed (planning, a stage not verified, an annotation that cannot be made)
     is returned with its reason."""
@@ -333,31 +335,20 @@ def run_expert(
     schedule: list[Disturbance] | None = None
     if kinds:
         t0 = time.perf_counter()
-        clean = _simulate(setup, action_noise, Stopwatch(), schedule=[], trace=True)
-        try:
-            schedule = plan_disturbances(kinds, seed, clean.trace, clean.episode.station)
-        except NoDisturbanceWindow as err:
-            clock.add("trace", time.perf_counter() - t0)
-            return EpisodeResult(
-                seed, False, f"no_disturbance_window: {err}", timings=clock.seconds()
-            )
+        clean = trace_expert(setup, kinds, action_noise)  # its station is gone on return
         clock.add("trace", time.perf_counter() - t0)
-        del clean  # its station: one at a time
+        schedule, missing = clean.schedule(kinds)
+        if missing is not None:
+            return EpisodeResult(seed, False, missing, timings=clock.seconds())
     run = _simulate(setup, action_noise, clock, schedule=schedule)
 
     def failed(reason: str) -> EpisodeResult:
         return EpisodeResult(seed, False, reason, timings=clock.seconds())
 
-    if run.failure is not None:
-        return failed(run.failure)
-    monitor, recorder = run.episode.monitor, run.recorder
-    if not monitor.success:
-        stages = zip(monitor.stages, monitor.completed(), strict=True)
-        return failed(f"stage_not_verified: {', '.join(s.subgoal for s, ok in stages if not ok)}")
-    try:
-        rows = monitor.annotations(len(recorder))
-    except ValueError as err:  # cannot happen when success holds; never a crash of the run
-        return failed(f"annotation: {err}")
+    reason, rows = _verified(run)
+    if reason is not None:
+        return failed(reason)
+    recorder = run.recorder
     recovery = []
     for d in schedule or ():
         end = min((b for b in run.reads if b >= d.end), default=len(recorder))
@@ -379,6 +370,64 @@ def run_expert(
         disturbances=list(schedule or ()),
         recovery=recovery,
     )
+
+
+def _verified(run: _Simulated) -> tuple[str | None, list]:
+    """Why the expert's physics run fails its seed (None: every stage verified) and, when it
+    does not, the stage rows of its recording."""
+    if run.failure is not None:
+        return run.failure, []
+    monitor = run.episode.monitor
+    if not monitor.success:
+        stages = zip(monitor.stages, monitor.completed(), strict=True)
+        return f"stage_not_verified: {', '.join(s.subgoal for s, ok in stages if not ok)}", []
+    try:
+        return None, monitor.annotations(len(run.recorder))
+    except ValueError as err:  # cannot happen when success holds; never a crash of the run
+        return f"annotation: {err}", []
+
+
+@dataclass
+class CleanRun:
+    """A clean (undisturbed) physics run of an expert, traced (:func:`trace_expert`): the
+    verdict a plain run gives (`success`, and the `reason` of a failure, as
+    :func:`run_expert`'s) and, per disturbance kind asked for, the disturbance drawn for the
+    seed in its window, or the reason it has none (a ``NoDisturbanceWindow`` message)."""
+
+    seed: int
+    success: bool
+    reason: str | None
+    disturbances: dict[str, Disturbance | str] = field(default_factory=dict)
+
+    def schedule(self, kinds: Sequence[str]) -> tuple[list[Disturbance], str | None]:
+        """The disturbances of `kinds` and None, or ``([], "no_disturbance_window: ...")``
+        for the first kind without a window (:func:`~bicoord_drake.sim.disturbances.
+        schedule_of`)."""
+        return schedule_of(self.disturbances, kinds)
+
+
+def trace_expert(
+    setup: EpisodeSetup, disturb: Sequence[str], action_noise: ActionNoise = 0.0
+) -> CleanRun:
+    """The clean run a disturbed episode of `setup` starts from: the expert in physics (no
+    cameras, the same `action_noise`), every frame's contacts and the expert's plan boundaries
+    traced (:class:`~bicoord_drake.sim.disturbances.ExpertTrace`), and one disturbance of each
+    kind of `disturb` drawn for the seed in its window
+    (:func:`~bicoord_drake.sim.disturbances.plan_disturbances`; each kind's draw does not
+    depend on the others asked for). Generation (:func:`run_expert` with `disturb`) and a
+    disturbed evaluation (its expert check) both take their disturbances from here, so the
+    same seed and setup get the same disturbances."""
+    kinds = parse_disturb(disturb)
+    clean = _simulate(setup, action_noise, Stopwatch(), schedule=[], trace=True)
+    reason, _ = _verified(clean)
+    station = clean.episode.station
+    plans: dict[str, Disturbance | str] = {}
+    for kind in kinds:
+        try:
+            (plans[kind],) = plan_disturbances((kind,), setup.seed, clean.trace, station)
+        except NoDisturbanceWindow as err:
+            plans[kind] = str(err)
+    return CleanRun(setup.seed, reason is None, reason, plans)
 
 
 class _WatchedView(WorldView):

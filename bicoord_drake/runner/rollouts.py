@@ -16,6 +16,7 @@ import os
 import re
 import time
 import traceback
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, Literal
@@ -45,6 +46,12 @@ from bicoord_drake.scenario import (
     evaluation_seed,
     recorded_scenario,
 )
+from bicoord_drake.sim.disturbances import (
+    Disturbance,
+    disturbance_records,
+    from_records,
+    parse_disturb,
+)
 from bicoord_drake.sim.simulation import PhysicsDivergedError
 from bicoord_drake.tasks.base import Task
 
@@ -72,7 +79,10 @@ class EvaluateConfig(RunConfig):
     the policy, demonstrations and execution. The scenario's fields are also taken and read by
     name (``task``, ``episodes``, ``seed``, ``fps``, ...:
     :class:`~bicoord_drake.scenario.RunConfig`); evaluation seeds start at
-    ``100000 * (1 + seed)``."""
+    ``100000 * (1 + seed)``.
+
+    With the scenario's ``disturb`` (disturbance kinds) every seed is rolled out twice, clean
+    and disturbed (:attr:`disturb`)."""
 
     DEFAULTS: ClassVar[dict[str, Any]] = EVALUATION_DEFAULTS
 
@@ -109,6 +119,11 @@ class EvaluateConfig(RunConfig):
             raise ValueError("the replay policy needs demonstrations: give data (--data DIR)")
         if self.stage is not None and not self.data:
             raise ValueError("a stage evaluation needs demonstrations: give data (--data DIR)")
+        if self.stage is not None and self.disturb:
+            raise ValueError(
+                "disturb evaluates rollouts from the start of the task (a disturbance's step "
+                "counts from the episode's first frame): drop the stage (--stage) or disturb"
+            )
         if self.video and not self.render:
             raise ValueError("video needs rendering: drop --no-render")
         if not self.data:
@@ -123,6 +138,14 @@ class EvaluateConfig(RunConfig):
         if self.ray_address and self.backend != "ray":
             raise ValueError("ray_address is a setting of the ray backend: add backend='ray'")
         return self
+
+    @property
+    def disturb(self) -> tuple[str, ...]:
+        """The disturbance kinds of the disturbed rollouts (the scenario's ``disturb``; empty:
+        clean rollouts only). Each seed then gets a clean rollout and a disturbed one, with
+        the disturbances the expert's demonstration of that seed gets
+        (:func:`~bicoord_drake.runner.generate.trace_expert`)."""
+        return tuple(self.scenario.disturb)
 
     @property
     def parallel(self) -> bool:
@@ -151,7 +174,11 @@ class RolloutResult:
     Actions outside the robot's limits (:class:`LimitCount`): `out_of_limits` is how many of
     the rollout's executed actions had an entry outside them, `out_of_limits_entries` how many
     of those each entry (``left_waist``, ``right_gripper``, ...) was outside in, and
-    `out_of_limits_max` the largest excess (rad for a joint, opening units for a gripper)."""
+    `out_of_limits_max` the largest excess (rad for a joint, opening units for a gripper).
+
+    `disturbances`: those the rollout applied (mappings of the fields of
+    :class:`~bicoord_drake.sim.disturbances.Disturbance`: kind, body, step, duration, side,
+    force, torque, point); in the report only when there are some."""
 
     seed: int
     success: bool
@@ -169,6 +196,7 @@ class RolloutResult:
     out_of_limits: int = 0
     out_of_limits_entries: dict[str, int] = field(default_factory=dict)
     out_of_limits_max: float = 0.0
+    disturbances: list[dict[str, Any]] = field(default_factory=list)
     left_xyz: np.ndarray | None = field(default=None, repr=False)
     right_xyz: np.ndarray | None = field(default=None, repr=False)
     grippers: np.ndarray | None = field(default=None, repr=False)
@@ -177,6 +205,8 @@ class RolloutResult:
         out = asdict(self)
         for key in ("left_xyz", "right_xyz", "grippers"):
             out.pop(key)
+        if not self.disturbances:
+            out.pop("disturbances")  # the record of a clean rollout, as before disturbances
         return out
 
 
@@ -229,12 +259,14 @@ def rollout(
     episode: Episode | None = None,
     stage: int | None = None,
     video: str | Path | None = None,
+    disturbances: Sequence[Disturbance] | None = None,
 ) -> RolloutResult:
     """Run one rollout of `policy` in `env` until done (success, the step limit, or an early
     stop of `env`: a task object lost, the physics diverged); never raises for policy
-    faults."""
+    faults. `disturbances` are applied in it (``Env.reset``; None: those `episode`
+    recorded, if any)."""
     t0 = time.perf_counter()
-    obs = env.reset(seed, stage=stage, episode=episode)
+    obs = env.reset(seed, stage=stage, episode=episode, disturbances=disturbances)
     frames: list[bytes] = []
     left, right, grippers = [], [], []
     error = tb = failure = None
@@ -292,6 +324,7 @@ def rollout(
         out_of_limits=limits.actions,
         out_of_limits_entries=dict(sorted(limits.entries.items(), key=lambda kv: (-kv[1], kv[0]))),
         out_of_limits_max=round(limits.max_excess, 6),
+        disturbances=disturbance_records(env.disturbances),
         left_xyz=np.array(left).reshape(-1, 3),
         right_xyz=np.array(right).reshape(-1, 3),
         grippers=np.array(grippers).reshape(-1, 2),
@@ -374,11 +407,20 @@ class ExpertCheck:
     settings (each only when not the default), the package version and
     :func:`code_fingerprint`, so an expert changed in any way (an edited checkout included) is
     checked again.
+
+    With `disturb` (disturbance kinds: a disturbed evaluation) the check is the traced clean
+    run a disturbed demonstration starts from (:func:`~bicoord_drake.runner.generate.
+    trace_expert`): one expert run per seed gives both the verdict and the disturbance of
+    each kind drawn for the seed (or why it has no window), cached with the verdict
+    (:meth:`disturbances`).
     """
 
-    def __init__(self, setup: EpisodeSetup, path: Path | None = None) -> None:
+    def __init__(
+        self, setup: EpisodeSetup, path: Path | None = None, disturb: Sequence[str] = ()
+    ) -> None:
         self.setup = setup.without_cameras()
         self.task = setup.get_task()
+        self.disturb = parse_disturb(disturb)
         self.path = path or cache_dir() / "expert_check" / f"{self.task.name}.json"
         try:
             self._cache = json.loads(self.path.read_text(encoding="utf-8"))
@@ -387,8 +429,10 @@ class ExpertCheck:
 
     @classmethod
     def for_config(cls, task: Task, config: EvaluateConfig) -> ExpertCheck:
-        """The check of an evaluation with `config` (its scenes, robot and control rate)."""
-        return cls(config.episode_setup(task, evaluation_seed(config.seed)))
+        """The check of an evaluation with `config` (its scenes, robot and control rate, and
+        its disturbance kinds)."""
+        setup = config.episode_setup(task, evaluation_seed(config.seed))
+        return cls(setup, disturb=config.disturb)
 
     @property
     def fps(self) -> float:
@@ -412,9 +456,10 @@ class ExpertCheck:
         )
 
     def __call__(self, seed: int) -> tuple[bool, str | None]:
-        """(ok, reason) for `seed`, from the cache or by running the expert."""
-        if self.lookup(seed) is None:
-            self.store(seed, expert_verdict(self.setup.for_seed(seed)))
+        """(ok, reason) for `seed`, from the cache or by running the expert (with `disturb`,
+        traced: its disturbances are then cached too)."""
+        if self.lookup(seed) is None or self.lookup_disturbances(seed) is None:
+            self.store(seed, expert_verdict(self.setup.for_seed(seed), self.disturb))
         return self.lookup(seed)
 
     def lookup(self, seed: int) -> tuple[bool, str | None] | None:
@@ -422,9 +467,28 @@ class ExpertCheck:
         v = self._cache.get(self._key(seed))
         return None if v is None else (bool(v["ok"]), v.get("reason"))
 
+    def disturbances(self, seed: int) -> dict[str, Disturbance | str]:
+        """Kind -> the disturbance drawn for `seed` (or why the kind has no window there), for
+        each of this check's kinds; from the cache or by running the traced expert."""
+        self(seed)
+        return self.lookup_disturbances(seed) or {}
+
+    def lookup_disturbances(self, seed: int) -> dict[str, Disturbance | str] | None:
+        """The cached disturbances of `seed` (as :meth:`disturbances`; empty without kinds),
+        None if a kind was not drawn yet."""
+        drawn = (self._cache.get(self._key(seed)) or {}).get("disturbances", {})
+        if any(kind not in drawn for kind in self.disturb):
+            return None
+        return drawn_from_json({k: drawn[k] for k in self.disturb})
+
     def store(self, seed: int, verdict: dict[str, Any]) -> None:
-        """Cache a verdict of :func:`expert_verdict` (e.g. one a worker computed)."""
-        self._cache[self._key(seed)] = verdict
+        """Cache a verdict of :func:`expert_verdict` (e.g. one a worker computed); the
+        disturbances of kinds it did not draw stay cached."""
+        key = self._key(seed)
+        kept = (self._cache.get(key) or {}).get("disturbances", {})
+        if kept or "disturbances" in verdict:
+            verdict = {**verdict, "disturbances": {**kept, **verdict.get("disturbances", {})}}
+        self._cache[key] = verdict
         try:
             write_json(self.path, self._cache)
         except OSError:
@@ -445,15 +509,77 @@ def _station_key(station: StationConfig) -> str:
     return "@station-" + hashlib.sha256(text.encode()).hexdigest()[:8]
 
 
-def expert_verdict(setup: EpisodeSetup) -> dict[str, Any]:
+def expert_verdict(setup: EpisodeSetup, disturb: Sequence[str] = ()) -> dict[str, Any]:
     """``{"ok": ..., "reason": ...}``: whether the expert solves `setup`'s episode in physics
     (no cameras): its scene (plain, or with `randomize` the seed's randomized scene of its
-    split), robot and station."""
+    split), robot and station. With `disturb` (disturbance kinds) the run is traced
+    (:func:`~bicoord_drake.runner.generate.trace_expert`) and ``"disturbances"`` holds, per
+    kind, the disturbance drawn for the seed (:func:`drawn_to_json`)."""
     try:
+        if disturb:
+            clean = generation.trace_expert(setup.without_cameras(), disturb)
+            drawn = drawn_to_json(clean.disturbances)
+            return {"ok": clean.success, "reason": clean.reason, "disturbances": drawn}
         result = generation.run_expert(setup.without_cameras())
         return {"ok": result.success, "reason": result.reason}
     except Exception as exc:  # an expert crash is a failed seed, not a failed run
-        return {"ok": False, "reason": f"expert crashed: {generation.format_failure(exc)}"}
+        reason = f"expert crashed: {generation.format_failure(exc)}"
+        if not disturb:
+            return {"ok": False, "reason": reason}
+        # no trace, no window: the seed's disturbed rollout is skipped with this reason
+        drawn = drawn_to_json(dict.fromkeys(parse_disturb(disturb), reason))
+        return {"ok": False, "reason": reason, "disturbances": drawn}
+
+
+def drawn_to_json(drawn: Mapping[str, Disturbance | str]) -> dict[str, dict[str, Any]]:
+    """Kind -> ``{"disturbance": its fields}`` or ``{"no_window": reason}`` (JSON values)."""
+    return {
+        kind: {"disturbance": d.model_dump(mode="json")}
+        if isinstance(d, Disturbance)
+        else {"no_window": str(d)}
+        for kind, d in drawn.items()
+    }
+
+
+def drawn_from_json(data: Mapping[str, Mapping[str, Any]]) -> dict[str, Disturbance | str]:
+    """The inverse of :func:`drawn_to_json`."""
+    return {
+        kind: from_records([v["disturbance"]])[0] if "disturbance" in v else str(v["no_window"])
+        for kind, v in data.items()
+    }
+
+
+def demonstration_disturbances(
+    task: Task, config: EvaluateConfig, episode: Episode
+) -> dict[str, Disturbance | str]:
+    """Kind -> the disturbance of each of `config`'s kinds for a rollout on the demonstration
+    `episode` (or why it has no window): the one the demonstration recorded, if it was
+    generated with that kind; else the one generation draws for it, from a traced clean run
+    of the expert on the rollout's episode (the demonstration's seed, scene, physics and
+    action-noise level: :func:`~bicoord_drake.runner.generate.trace_expert`)."""
+    kinds = config.disturb
+    recorded = recorded_disturbances(config, episode)
+    if recorded is not None:
+        return recorded
+    setup = config.episode_setup(task, episode.seed)
+    setup = setup.replace(station=rollout_station(config, episode))
+    setup = setup.with_scene(episode.seed, episode.scene) if episode.scene else setup
+    try:
+        traced = generation.trace_expert(setup, kinds, episode.action_noise)
+    except Exception as exc:  # an expert crash: no window, the disturbed rollout is skipped
+        return dict.fromkeys(kinds, f"expert crashed: {generation.format_failure(exc)}")
+    return traced.disturbances
+
+
+def recorded_disturbances(
+    config: EvaluateConfig, episode: Episode
+) -> dict[str, Disturbance | str] | None:
+    """Kind -> the disturbance of each of `config`'s kinds that the demonstration `episode`
+    was generated with; None unless it recorded every kind."""
+    recorded = {d.kind: d for d in from_records(episode.disturbances)}
+    if all(kind in recorded for kind in config.disturb):
+        return {kind: recorded[kind] for kind in config.disturb}
+    return None
 
 
 # --------------------------------------------------------------------------- evaluation

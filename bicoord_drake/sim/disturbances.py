@@ -332,6 +332,19 @@ def plan_disturbances(
     return out
 
 
+def schedule_of(
+    drawn: Mapping[str, Disturbance | str], kinds: Sequence[str]
+) -> tuple[list[Disturbance], str | None]:
+    """The disturbances of `kinds` from `drawn` (kind -> its disturbance, or the reason it has
+    no window), and None; or ``([], "no_disturbance_window: REASON")`` with the reason of the
+    first kind (in :data:`DISTURBANCE_KINDS` order) that has none."""
+    kinds = parse_disturb(kinds)
+    for kind in kinds:
+        if not isinstance(drawn[kind], Disturbance):
+            return [], f"no_disturbance_window: {drawn[kind]}"
+    return [drawn[k] for k in kinds], None  # type: ignore[misc]  # all disturbances here
+
+
 def acted_on(trace: ExpertTrace, name: str) -> int | None:
     """The first frame at which the robot touches object `name`, or `name` touches an object
     the robot has handled (touched at that frame or before: what it carries, places or
