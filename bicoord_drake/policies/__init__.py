@@ -38,6 +38,7 @@ import inspect
 import re
 from collections.abc import Callable
 from typing import Any, Protocol, runtime_checkable
+from urllib.parse import parse_qsl
 
 import numpy as np
 
@@ -59,6 +60,26 @@ class Policy(Protocol):
 
 class PolicyLoadError(ValueError):
     """A policy spec that cannot be imported or does not give a policy."""
+
+
+def spec_options(spec: str, query: str, known: dict[str, Callable[[str], Any]]) -> dict[str, Any]:
+    """The ``k=v&...`` options after a policy spec's ``?``, each converted by ``known[k]``;
+    PolicyLoadError naming an unknown option (and the known ones) or a value that does not
+    convert."""
+    options: dict[str, Any] = {}
+    for key, value in parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query)):
+        if key not in known:
+            raise PolicyLoadError(
+                f"policy {spec!r}: unknown option {key!r} (options: {', '.join(known)})"
+            )
+        try:
+            options[key] = known[key](value)
+        except ValueError:
+            kind = getattr(known[key], "__name__", "value")
+            raise PolicyLoadError(
+                f"policy {spec!r}: option {key}={value!r} is not a valid {kind}"
+            ) from None
+    return options
 
 
 class FunctionPolicy:

@@ -48,11 +48,10 @@ from collections import defaultdict
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
-from urllib.parse import parse_qsl
 
 import numpy as np
 
-from bicoord_drake.policies import PolicyLoadError, env_action_size
+from bicoord_drake.policies import PolicyLoadError, env_action_size, spec_options
 
 PREFIX = "lerobot-dataset:"
 #: The exporter's per-episode metadata (source file, task, seed, stage rows).
@@ -91,16 +90,7 @@ def parse_spec(spec: str) -> tuple[Path, dict[str, Any]]:
             f"policy {spec!r}: give a LeRobot dataset directory after {PREFIX!r} "
             "(a scripts/export.py --to lerobot output)"
         )
-    options: dict[str, Any] = {}
-    for key, value in parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query)):
-        if key not in OPTIONS:
-            raise PolicyLoadError(
-                f"policy {spec!r}: unknown option {key!r} (options: {', '.join(OPTIONS)})"
-            )
-        try:
-            options[key] = OPTIONS[key](value)
-        except ValueError:
-            raise PolicyLoadError(f"policy {spec!r}: option {key}={value!r} is not valid") from None
+    options = spec_options(spec, query, OPTIONS)
     return Path(body).expanduser(), options
 
 

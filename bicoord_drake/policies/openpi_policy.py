@@ -47,11 +47,10 @@ import inspect
 import re
 import weakref
 from typing import Any
-from urllib.parse import parse_qsl
 
 import numpy as np
 
-from bicoord_drake.policies import PolicyLoadError, env_action_size
+from bicoord_drake.policies import PolicyLoadError, env_action_size, spec_options
 
 PREFIX = "openpi:"
 OPENPI_CLIENT_PIN = "openpi-client==0.1.2"
@@ -110,18 +109,7 @@ def parse_spec(spec: str) -> tuple[str, str, dict[str, Any]]:
     port = int(match["port"])
     if not 0 < port < 65536:
         raise PolicyLoadError(f"{usage}; port {port} is not in 1..65535")
-    options: dict[str, Any] = {}
-    for key, value in parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query)):
-        if key not in OPTIONS:
-            raise PolicyLoadError(
-                f"policy {spec!r}: unknown option {key!r} (options: {', '.join(OPTIONS)})"
-            )
-        try:
-            options[key] = OPTIONS[key](value)
-        except ValueError:
-            raise PolicyLoadError(
-                f"policy {spec!r}: option {key}={value!r} is not a {OPTIONS[key].__name__}"
-            ) from None
+    options = spec_options(spec, query, OPTIONS)
     return uri, f"{match['host']}:{port}", options
 
 

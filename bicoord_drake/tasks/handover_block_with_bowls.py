@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import nullcontext
 from functools import partial
 
 import numpy as np
@@ -497,33 +498,29 @@ def _catch_options(ctx: SkillContext) -> Iterator[tuple[int, np.ndarray]]:
     p_BT = X_BT.translation()
     a0 = float(np.arctan2(p_BT[1], p_BT[0]))  # the grip's azimuth in the bowl frame
     p_bowl = LIP_AT + CATCH_OFFSET + [0.0, 0.0, -CATCH_DROP - CATCH_BOWL.height]
-    reasons = []
-    for k, azimuth in enumerate(CATCH_AZIMUTHS):
-        X_WB = RigidTransform(RotationMatrix.MakeZRotation(azimuth - a0), p_bowl)
-        try:
-            q = solve_tcp(ctx, "right", TcpTarget(X_WB @ X_BT))
-        except PlanningError as err:
-            reasons.append(err.reason)
-            continue
-        yield k, q
-    if len(reasons) < len(CATCH_AZIMUTHS):
-        return
-    # Every catch pose came too close to the left hand where it waits now (seed 4: the
-    # grippers 1.7-1.9 cm apart against 2 cm), but the left will hold the spout elsewhere:
-    # the poses solved with the left out of the way (at home), the meeting checking the pair.
+    # A second pass only if every catch pose came too close to the left hand where it waits
+    # now (seed 4: the grippers 1.7-1.9 cm apart against 2 cm), as the left will hold the
+    # spout elsewhere: the poses solved with the left out of the way (at home), the meeting
+    # checking the pair.
     home_left = ctx.model.home[ctx.model.side_slice("left")]
-    for k, azimuth in enumerate(CATCH_AZIMUTHS):
-        X_WB = RigidTransform(RotationMatrix.MakeZRotation(azimuth - a0), p_bowl)
-        with ctx.rehearsal():
-            ctx.q = ctx.with_arm("left", home_left)
-            try:
-                q = solve_tcp(ctx, "right", TcpTarget(X_WB @ X_BT))
-            except PlanningError as err:
-                reasons.append(err.reason)
-                continue
-        yield k, q
-    if len(reasons) == 2 * len(CATCH_AZIMUTHS):
-        raise PlanningError("catch_unreachable", f"right cannot hold its bowl there ({reasons})")
+    reasons = []
+    for left_away in (False, True):
+        found = False
+        for k, azimuth in enumerate(CATCH_AZIMUTHS):
+            X_WB = RigidTransform(RotationMatrix.MakeZRotation(azimuth - a0), p_bowl)
+            with ctx.rehearsal() if left_away else nullcontext():
+                if left_away:
+                    ctx.q = ctx.with_arm("left", home_left)
+                try:
+                    q = solve_tcp(ctx, "right", TcpTarget(X_WB @ X_BT))
+                except PlanningError as err:
+                    reasons.append(err.reason)
+                    continue
+            found = True
+            yield k, q
+        if found:
+            return
+    raise PlanningError("catch_unreachable", f"right cannot hold its bowl there ({reasons})")
 
 
 def _spout_options(

@@ -12,6 +12,12 @@ from typing import Any
 import pytest
 
 
+@pytest.fixture
+def isolated_cache(tmp_path, monkeypatch):
+    """Keep the expert-check cache out of the home directory (``$BICOORD_CACHE``)."""
+    monkeypatch.setenv("BICOORD_CACHE", str(tmp_path / "cache"))
+
+
 @pytest.fixture(scope="session")
 def ray_cluster():
     """``ray.init(num_cpus=2)``; yields its GCS address (for drivers in other processes)."""

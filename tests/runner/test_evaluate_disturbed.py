@@ -34,10 +34,7 @@ PUSH = Disturbance(
 NO_WINDOW = "push: the expert's first plan leaves no time for a push"
 
 
-@pytest.fixture(autouse=True)
-def cache(tmp_path, monkeypatch):
-    """Keep the expert-check cache out of the home directory."""
-    monkeypatch.setenv("BICOORD_CACHE", str(tmp_path / "cache"))
+pytestmark = pytest.mark.usefixtures("isolated_cache")
 
 
 def config(tmp_path, **kw) -> EvaluateConfig:

@@ -10,11 +10,7 @@ from bicoord_drake.env import make_env
 from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate
 from bicoord_drake.runner.rollouts import LimitCount
 
-
-@pytest.fixture(autouse=True)
-def cache(tmp_path, monkeypatch):
-    """Keep the expert-check cache out of the home directory."""
-    monkeypatch.setenv("BICOORD_CACHE", str(tmp_path / "cache"))
+pytestmark = pytest.mark.usefixtures("isolated_cache")
 
 
 def config(tmp_path, **kw) -> EvaluateConfig:
