@@ -137,20 +137,9 @@ def grip(
     The command moves as fast as the fingers go, or with `gentle` over
     :func:`gentle_release_time` (never faster than the fingers): a squeezed light object
     unloads gently instead of springing off."""
-    return grip_over(ctx, side, opening, grip_steps(ctx, gentle), settle, label)
-
-
-def grip_steps(ctx: SkillContext, gentle: bool) -> int:
-    """Control steps of :func:`grip`'s command ramp (at least the fingers' full stroke)."""
-    if not gentle:
-        return ctx.gripper_steps
-    return max(ctx.steps(gentle_release_time(ctx)), ctx.gripper_steps)
-
-
-def grip_over(
-    ctx: SkillContext, side: str, opening: float, steps: int, settle: float, label: str
-) -> ArmPlan:
-    """The gripper command ramped linearly to `opening` over `steps`, then held `settle` s."""
+    steps = ctx.gripper_steps
+    if gentle:
+        steps = max(ctx.steps(gentle_release_time(ctx)), steps)
     start = ctx.opening[side]
     n = steps + ctx.steps(settle)
     ramp = np.clip(np.arange(n + 1) / steps, 0, 1)

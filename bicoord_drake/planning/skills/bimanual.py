@@ -42,7 +42,7 @@ from bicoord_drake.planning.grasps import (
     pot_handle_grasps_across,
 )
 from bicoord_drake.planning.ik import TcpTarget
-from bicoord_drake.planning.skills.arm import grip_over, grip_steps, tcp_deviation
+from bicoord_drake.planning.skills.arm import grip, tcp_deviation
 from bicoord_drake.planning.skills.core import Motion, SkillContext, combine
 from bicoord_drake.planning.skills.shapes import half_extent
 from bicoord_drake.planning.skills.tracking import (
@@ -175,8 +175,7 @@ def grip_together(
 ) -> Motion:
     """Both grippers move to `opening` on the same control steps (arms still), then hold for
     `settle` seconds (see :func:`~bicoord_drake.planning.skills.arm.grip`)."""
-    steps = grip_steps(ctx, gentle)
-    plans = [grip_over(ctx, side, opening, steps, settle, label) for side in SIDES]
+    plans = [grip(ctx, side, opening, settle=settle, gentle=gentle, label=label) for side in SIDES]
     motion = combine(*plans)
     motion.label = label
     return motion
