@@ -15,8 +15,10 @@ Key functions:
   and the motion never leaves the straight segment (Ruckig's phase synchronization silently falls
   back to time synchronization and then bows off the line). Corners are passed at rest - a
   non-zero velocity through a corner would need infinite acceleration on an exact polyline;
-  collinear runs are merged into one segment. Every corner is a sample, so the station's linear
-  interpolation between samples never cuts a corner either. With a two-arm path both arms start
+  collinear runs are merged into one segment. Each segment lasts a whole number of
+  :data:`SEGMENT_QUANTUM` (the 15 Hz period) at any rate, so a path lasts the same time at every
+  rate; at 15 Hz (and its multiples) every corner is a sample, so the station's linear
+  interpolation between samples never cuts one. With a two-arm path both arms start
   and arrive at the same instant by construction.
 - :func:`synchronize` / :func:`rendezvous` - arms with separate paths: the faster one is
   uniformly slowed (time-scaled, which keeps its path and only lowers velocity, acceleration and
@@ -51,6 +53,16 @@ from bicoord_drake.planning.errors import PlanningError
 
 #: Default control period (15 Hz).
 CONTROL_DT = 1.0 / 15.0
+#: Every straight segment of a timed path lasts a whole number of these (s), at any control
+#: rate: the reference rate's period, so a path lasts the same time at 10, 15, 30 or 50 Hz.
+#: Rounding each segment up to the control period instead made a path of many short segments
+#: 4 % shorter at 50 Hz and 4 % longer at 10 Hz than at 15 Hz (put_objects_cabinet). At rates
+#: whose period divides it (15, 30, 45 Hz ...) every corner is still a sample; at others a
+#: corner may fall between two samples, where the motion is at rest, so the station's linear
+#: interpolation between them cuts it by the path's travel in half a period of its jerk-limited
+#: stop: under 1e-4 rad at 50 Hz and 2e-3 rad at 10 Hz with the ViperX's limits
+#: (tests/planning/test_time_in_seconds.py).
+SEGMENT_QUANTUM = CONTROL_DT
 #: Standard gravity (m/s^2).
 GRAVITY = 9.81
 
@@ -542,7 +554,8 @@ def time_path(
     `waypoints` is (K, n) (both arms' joints move both arms together: they start and arrive
     together).
     Each straight run is a 1-DoF jerk-limited Ruckig profile of its path parameter lasting a
-    whole number of control periods; corners are visited at rest. Raises
+    whole number of :data:`SEGMENT_QUANTUM` (the same at every rate); corners are visited at
+    rest; the whole path is held at its goal up to the next control step. Raises
     ``PlanningError('joint_limits')`` if a waypoint is outside the position limits.
     """
     pts = np.atleast_2d(np.asarray(waypoints, dtype=float))
@@ -556,14 +569,26 @@ def time_path(
             "joint_limits", f"waypoint {k} joint {j} = {pts[k, j]:.4f} out of range"
         )
     pts = _merge_collinear(pts, merge_tol)
-    parts: list[TimedTrajectory] = []
-    for a, b in zip(pts, pts[1:], strict=False):
-        dq = b - a
-        traj = _ruckig_1dof(*_path_limits(dq, limits), dt)
-        parts.append(TimedTrajectory._sample(_PathSegment(a, b, traj), dt))
-    if not parts:
+    segments = [
+        _PathSegment(a, b, _ruckig_1dof(*_path_limits(b - a, limits), SEGMENT_QUANTUM))
+        for a, b in zip(pts, pts[1:], strict=False)
+    ]
+    if not segments:
         return TimedTrajectory.hold(pts[0], 0, dt)
-    return concatenate(parts)
+    if abs(dt - SEGMENT_QUANTUM) < _GRID_TOL:
+        # at the reference rate every corner is a sample
+        return concatenate([TimedTrajectory._sample(s, dt) for s in segments])
+    return TimedTrajectory._sample(_rounded_up(_Concat(segments), dt), dt)
+
+
+def _rounded_up(timeline: _Timeline, dt: float) -> _Timeline:
+    """`timeline` followed by a hold at its end up to the next multiple of `dt`."""
+    steps = _steps_at_least(timeline.duration, dt)
+    pad = steps * dt - timeline.duration
+    if pad <= _GRID_TOL:
+        return timeline
+    q_end = timeline.evaluate(timeline.duration)[0]
+    return _Concat([timeline, _Linear(q_end, np.zeros_like(q_end), pad)])
 
 
 def synchronize(

@@ -70,6 +70,41 @@ def test_a_planned_move_takes_the_same_time_at_every_rate(models):
     assert max(durations.values()) - min(durations.values()) <= 1 / 15 + 1e-9
 
 
+def _off_polyline(q: np.ndarray, corners: np.ndarray) -> float:
+    """How far the station's linear interpolation between samples `q` leaves the polyline."""
+    a, d = corners[:-1], np.diff(corners, axis=0)
+    worst = 0.0
+    for f in np.linspace(0, 1, 9):
+        for x in q[:-1] * (1 - f) + q[1:] * f:
+            s = np.clip(np.einsum("kj,kj->k", x - a, d) / np.einsum("kj,kj->k", d, d), 0, 1)
+            worst = max(worst, float(np.min(np.linalg.norm(x - (a + s[:, None] * d), axis=1))))
+    return worst
+
+
+def test_a_path_of_many_corners_lasts_the_same_time_at_every_rate():
+    """Segments last whole 15 Hz periods at every rate (rounded up to each rate's own period,
+    30 short segments drifted by 4 % between 10 and 50 Hz); the path's total is rounded up
+    once. At 15 and 30 Hz every corner is a sample; at 10 and 50 Hz a corner between two
+    samples is cut only by the at-rest motion of half a period."""
+    from bicoord_drake.models.viperx import aloha_viperx
+    from bicoord_drake.planning.timing import JointLimits, time_path
+
+    limits = JointLimits.from_embodiment(aloha_viperx(), arms=1)
+    rng = np.random.default_rng(7)
+    mid = (limits.lower + limits.upper) / 2
+    corners = mid + np.cumsum(rng.normal(0, 0.04, (31, limits.n)), axis=0)
+    timed = {hz: time_path(corners, limits, 1.0 / hz) for hz in (10, 15, 30, 50)}
+    for hz, traj in timed.items():
+        assert traj.duration == pytest.approx(timed[15].duration, abs=1.0 / hz + 1e-9)
+        traj.check_limits(limits)
+        assert np.array_equal(traj.q[-1], corners[-1])
+    assert timed[30].duration == pytest.approx(timed[15].duration, abs=1e-9)
+    assert _off_polyline(timed[15].q, corners) < 1e-12
+    assert _off_polyline(timed[30].q, corners) < 1e-12
+    assert _off_polyline(timed[50].q, corners) < 1e-4
+    assert _off_polyline(timed[10].q, corners) < 2e-3
+
+
 def test_the_dense_merge_check_keeps_its_spacing_in_seconds():
     assert merge_substeps(1 / 15) == 4  # as before at 15 Hz
     for hz in (10, 15, 30, 50, 100):
