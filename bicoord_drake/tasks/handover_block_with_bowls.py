@@ -88,6 +88,13 @@ POUR_YAW = -np.pi / 2  # bowl yaw that turns the spout (bowl +x) toward POUR_DIR
 #: that the right gripper stays clear of the left wrist, which ends above the fall.
 CATCH_OFFSET = np.array([0.03, -0.03, 0.0])
 CATCH_DROP = 0.07  # the catching bowl's rim this far below the lip (6 cm under the bottom)
+#: Meeting layouts (catching bowl's axis offset from the lip, rim drop below the lip) tried in
+#: this order. The second, wider and lower one (within the stage's tolerances, ALIGN_XY and
+#: ALIGN_Z) is for a hand as wide as the Franka Hand, whose housing reaches 10 cm along the
+#: jaw axis: at the first the two hands come 1.6-1.9 cm apart in the tilt
+#: (benchmarks/handover_room.py finds the most room with the axis 5 cm toward +x and 4 cm
+#: toward the robot from the lip, the rim 9.7 cm below it).
+MEETING_LAYOUTS = ((CATCH_OFFSET, CATCH_DROP), (np.array([0.045, -0.035, 0.0]), 0.09))
 #: Azimuths of the right grip around the catching bowl (world, from +x) and yaws of the spout
 #: (from POUR_DIRECTION) tried for the meeting, in this order.
 CATCH_AZIMUTHS = tuple(np.radians([-30, -10, -50, 10, -70]))
@@ -497,30 +504,33 @@ def _catch_options(ctx: SkillContext) -> Iterator[tuple[int, np.ndarray]]:
     X_BT = held.X_GO.inverse() @ RigidTransform([tcp_x, 0.0, 0.0])
     p_BT = X_BT.translation()
     a0 = float(np.arctan2(p_BT[1], p_BT[0]))  # the grip's azimuth in the bowl frame
-    p_bowl = LIP_AT + CATCH_OFFSET + [0.0, 0.0, -CATCH_DROP - CATCH_BOWL.height]
     # A second pass only if every catch pose came too close to the left hand where it waits
     # now (seed 4: the grippers 1.7-1.9 cm apart against 2 cm), as the left will hold the
     # spout elsewhere: the poses solved with the left out of the way (at home), the meeting
     # checking the pair.
     home_left = ctx.model.home[ctx.model.side_slice("left")]
     reasons = []
-    for left_away in (False, True):
-        found = False
-        for k, azimuth in enumerate(CATCH_AZIMUTHS):
-            X_WB = RigidTransform(RotationMatrix.MakeZRotation(azimuth - a0), p_bowl)
-            with ctx.rehearsal() if left_away else nullcontext():
-                if left_away:
-                    ctx.q = ctx.with_arm("left", home_left)
-                try:
-                    q = solve_tcp(ctx, "right", TcpTarget(X_WB @ X_BT))
-                except PlanningError as err:
-                    reasons.append(err.reason)
-                    continue
-            found = True
-            yield k, q
-        if found:
-            return
-    raise PlanningError("catch_unreachable", f"right cannot hold its bowl there ({reasons})")
+    found = False
+    for layout, (offset, drop) in enumerate(MEETING_LAYOUTS):
+        p_bowl = LIP_AT + offset + [0.0, 0.0, -drop - CATCH_BOWL.height]
+        for left_away in (False, True):
+            found_here = False
+            for k, azimuth in enumerate(CATCH_AZIMUTHS):
+                X_WB = RigidTransform(RotationMatrix.MakeZRotation(azimuth - a0), p_bowl)
+                with ctx.rehearsal() if left_away else nullcontext():
+                    if left_away:
+                        ctx.q = ctx.with_arm("left", home_left)
+                    try:
+                        q = solve_tcp(ctx, "right", TcpTarget(X_WB @ X_BT))
+                    except PlanningError as err:
+                        reasons.append(err.reason)
+                        continue
+                found = found_here = True
+                yield layout * len(CATCH_AZIMUTHS) + k, q
+            if found_here:
+                break
+    if not found:
+        raise PlanningError("catch_unreachable", f"right cannot hold its bowl there ({reasons})")
 
 
 def _spout_options(
