@@ -511,7 +511,7 @@ def _catch_options(ctx: SkillContext) -> Iterator[tuple[int, np.ndarray]]:
     home_left = ctx.model.home[ctx.model.side_slice("left")]
     reasons = []
     found = False
-    for layout, (offset, drop) in enumerate(MEETING_LAYOUTS):
+    for layout, (offset, drop) in _meeting_layouts(ctx):
         p_bowl = LIP_AT + offset + [0.0, 0.0, -drop - CATCH_BOWL.height]
         for left_away in (False, True):
             found_here = False
@@ -531,6 +531,17 @@ def _catch_options(ctx: SkillContext) -> Iterator[tuple[int, np.ndarray]]:
                 break
     if not found:
         raise PlanningError("catch_unreachable", f"right cannot hold its bowl there ({reasons})")
+
+
+def _meeting_layouts(ctx: SkillContext) -> list[tuple[int, tuple[np.ndarray, float]]]:
+    """(index, layout) of MEETING_LAYOUTS in the order to try: the wider one first for a hand
+    whose housing, gripping the catching bowl's rim, reaches within 2 cm of the bowl's axis
+    (the Franka Hand: 10 cm each side of the jaw axis on a 10 cm bowl; the ViperX's 6.5 cm)."""
+    arm = ctx.model.embodiment.arm
+    boxes = arm.hand_boxes(arm.gripper.opening_for_gap(CATCH_BOWL.wall))
+    half_width = max(max(abs(lo[1]), abs(hi[1])) for lo, hi in boxes)
+    layouts = list(enumerate(MEETING_LAYOUTS))
+    return layouts[::-1] if half_width > CATCH_BOWL.radius - 0.02 else layouts
 
 
 def _spout_options(
