@@ -272,6 +272,23 @@ def test_toss_levels_a_sagging_bowl_and_lands_at_the_aim():
     assert np.allclose(X_caught.translation()[:2], info["landing_point"][:2] - aim, atol=1e-3)
 
 
+def test_a_held_object_measured_out_of_the_hand_is_a_typed_error():
+    """At a run boundary a grasp that settled by millimetres is re-measured; an object that
+    left the hand (here: 15 cm below it, as a dropped bowl) raises grasp_lost instead of being
+    carried on in the plan where it is not."""
+    ctx, _ = ready_to_toss(toss_scene(0))
+    X_WB = ctx.model.held_pose("right", ctx.q)
+    assert ctx.hand_gap("right", "bowl", X_WB) == 0.0
+    settled = RigidTransform(X_WB.rotation(), X_WB.translation() + [0.0, 0.004, -0.003])
+    ctx.refresh_grasps({"bowl": settled})
+    assert ctx.model.held["right"].name == "bowl"
+    dropped = RigidTransform(X_WB.rotation(), X_WB.translation() + [0.0, 0.0, -0.15])
+    assert ctx.hand_gap("right", "bowl", dropped) > sk.GRASP_LOST_DISTANCE
+    with pytest.raises(PlanningError) as err:
+        ctx.refresh_grasps({"bowl": dropped})
+    assert err.value.reason == "grasp_lost" and "right no longer holds 'bowl'" in str(err.value)
+
+
 def test_least_spin_release_velocity():
     from bicoord_drake.planning.skills import least_spin_velocity
 

@@ -14,7 +14,8 @@ two n-joint arms, 14 for the ViperX pair).
 module                    skills
 ========================  ===================================================================
 :mod:`.core`              :class:`ArmPlan`, :class:`Motion`, :class:`SkillContext` (``sync``,
-                          ``refresh_grasps``, ``transaction``, ``rehearsal``), :func:`merge`,
+                          ``refresh_grasps``: a held object out of its hand is ``grasp_lost``,
+                          ``transaction``, ``rehearsal``), :func:`merge`,
                           :func:`combine` (two plans as they are, unchecked), :func:`hold`,
                           :func:`hold_still` (both arms), :func:`periods` (seconds -> samples),
                           :func:`plan_both` (two arms' parts, either planned first)
@@ -85,6 +86,7 @@ from bicoord_drake.planning.skills.bimanual import (
     two_hand_grasps,
 )
 from bicoord_drake.planning.skills.core import (
+    GRASP_LOST_DISTANCE,
     ArmPlan,
     Motion,
     SkillContext,
@@ -125,6 +127,7 @@ from bicoord_drake.planning.skills.turns import (
 )
 
 __all__ = [
+    "GRASP_LOST_DISTANCE",
     "ArmPlan",
     "GraspPair",
     "Motion",

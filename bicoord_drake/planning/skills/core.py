@@ -24,6 +24,7 @@ from pydrake.all import RigidTransform
 
 from bicoord_drake.models.embodiment import SIDES
 from bicoord_drake.models.layout import ActionLayout
+from bicoord_drake.planning.clearance import points_to_boxes, shape_points
 from bicoord_drake.planning.errors import PlanningError
 from bicoord_drake.planning.ik import BimanualIK
 from bicoord_drake.planning.model import HeldObject, PlanningModel, bisection_order
@@ -36,6 +37,10 @@ MERGE_CHECK_PERIOD = 1.0 / 60.0
 #: MERGE_MAX_DELAY (s).
 MERGE_DELAY_STRIDE = 0.2
 MERGE_MAX_DELAY = 6.0
+#: A held object measured farther than this (m) from its hand at a run boundary is no longer
+#: held (:meth:`SkillContext.refresh_grasps`): a grasp settles by millimetres, a lost object
+#: lies centimetres away.
+GRASP_LOST_DISTANCE = 0.02
 
 
 def periods(seconds: float, dt: float) -> int:
@@ -216,14 +221,36 @@ class SkillContext:
     def refresh_grasps(self, object_poses: dict[str, RigidTransform]) -> None:
         """Re-measure each held object's pose in its gripper from measured poses (a grasp
         settles by a few mm when the fingers close), so later placements aim right. Held
-        objects missing from `object_poses` keep their grasp."""
+        objects missing from `object_poses` keep their grasp. A held object no longer in its
+        hand (its surface farther than GRASP_LOST_DISTANCE from the hand: slipped out,
+        dropped) raises ``PlanningError('grasp_lost')``: planning on would carry it where it
+        is not."""
         for side, held in list(self.model.held.items()):
             X_WO = object_poses.get(held.name)
             if X_WO is None:
                 continue
+            gap = self.hand_gap(side, held.name, X_WO)
+            if gap > GRASP_LOST_DISTANCE:
+                raise PlanningError(
+                    "grasp_lost",
+                    f"{side} no longer holds {held.name!r}: measured {gap * 100:.1f} cm from "
+                    "its hand",
+                )
             self.model.detach(side, X_WO=X_WO)
             together = bool(self.model.holders(held.name))  # the other hand holds it too
             self.model.attach(held.name, side, self.q, X_WO=X_WO, together=together)
+
+    def hand_gap(self, side: str, name: str, X_WO: RigidTransform) -> float:
+        """Least distance (m) from the surface of object `name` at `X_WO` to `side`'s hand
+        (its gripper and fingers at the tracked opening, at the tracked joints); 0 where they
+        overlap, as a held object between the fingers does."""
+        arm = self.model.embodiment.arm
+        X_TO = self.model.tcp_pose(self.q, side).inverse() @ X_WO
+        points = shape_points(self.model.object(name).shape)
+        return points_to_boxes(
+            points @ X_TO.rotation().matrix().T + X_TO.translation(),
+            arm.hand_boxes(self.opening[side]),
+        )
 
     def arm_q(self, side: str) -> np.ndarray:
         """The joint angles of `side` (a copy)."""
