@@ -190,6 +190,28 @@ class SceneObject(BaseModel):
         "each other dominate its physics cost: stack_bowls)",
     )
 
+    compliant_parts: tuple[int, ...] = Field(
+        (),
+        description="parts (indices in the shape's primitives) of a fixed object that are "
+        "compliant-hydroelastic (its hydroelastic_modulus) instead of rigid: a bin's floor that "
+        "dropped objects land on. Under SAP a compliant box landing flat on a rigid face at "
+        "0.3-1 m/s can be thrown back up at up to 30 m/s; on a compliant one it comes to rest "
+        "(benchmarks/bench_flat_landing.md)",
+    )
+
+    @model_validator(mode="after")
+    def _compliant_parts(self) -> SceneObject:
+        if self.compliant_parts and not self.fixed:
+            raise ValueError(
+                f"{self.name}: compliant_parts is for fixed objects (free ones are "
+                "compliant already)"
+            )
+        count = len(self.shape.primitives())
+        bad = [i for i in self.compliant_parts if not 0 <= i < count]
+        if bad:
+            raise ValueError(f"{self.name}: compliant_parts {bad} not in 0..{count - 1}")
+        return self
+
     @model_validator(mode="after")
     def _rigid_kind(self) -> SceneObject:
         if self.rigid_hydroelastic and self.shape.kind not in get_args(RigidKind):
@@ -205,8 +227,8 @@ def object_sdf(obj: SceneObject, rigid: bool = False) -> str:
 
     A free object is compliant-hydroelastic (its ``hydroelastic_modulus``) unless `rigid`
     (``StationConfig.rigid_object_kinds``) or its ``rigid_hydroelastic``: then every part but
-    the shape's ``base_parts()`` is rigid-hydroelastic. A fixed object is always
-    rigid-hydroelastic."""
+    the shape's ``base_parts()`` is rigid-hydroelastic. A fixed object is rigid-hydroelastic
+    but for its ``compliant_parts``."""
     prims = obj.shape.primitives()
     mesh = obj.shape.visual_mesh()
     hint = obj.resolution_hint or _resolution_hint(obj.shape)
@@ -220,7 +242,7 @@ def object_sdf(obj: SceneObject, rigid: bool = False) -> str:
     part_props = [props] * len(prims)
     if obj.fixed:
         fixed = ContactProps(friction=obj.friction, hydroelastic="rigid", resolution_hint=hint)
-        part_props = [fixed] * len(prims)
+        part_props = [props if i in obj.compliant_parts else fixed for i in range(len(prims))]
     elif rigid or obj.rigid_hydroelastic:
         stiff = props.model_copy(update={"hydroelastic": "rigid"})
         base = obj.shape.base_parts()
