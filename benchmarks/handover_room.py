@@ -28,6 +28,7 @@ import numpy as np
 from pydrake.all import AngleAxis, RigidTransform, RotationMatrix
 
 import bicoord_drake.tasks.handover_block_with_bowls as task
+from bicoord_drake.models.geometry import transform_points
 from bicoord_drake.models.objects import BowlShape
 from bicoord_drake.models.robots import EMBODIMENTS, get_embodiment
 from bicoord_drake.planning.clearance import box_points, points_to_boxes, shape_points
@@ -40,10 +41,6 @@ RIM_DEPTHS = (0.003, 0.015)  # pad top below the rim, m
 FALL_ALONG = 0.03  # the cube's column runs this far along the pour direction, m
 PATH_MARGIN = 0.005  # the hand keeps this far from the column, m
 TILTS = np.radians([0, 20, 40, 60, 80])  # samples of the pour (POUR_ANGLE is 80 deg)
-
-
-def _moved(X: RigidTransform, points: np.ndarray) -> np.ndarray:
-    return points @ X.rotation().matrix().T + X.translation()
 
 
 def _pour_turns(X_WP: RigidTransform) -> list[RigidTransform]:
@@ -110,7 +107,7 @@ def room(embodiment_name: str, keep_fall_clear: bool = True) -> dict:
             R = RotationMatrix.MakeZRotation(task.POUR_YAW + yaw)
             X_WP = RigidTransform(R, task.LIP_AT - R @ task.LIP_POINT)
             turns = _pour_turns(X_WP)
-            pour_W = [_moved(T @ X_WP, pour_points) for T in turns]
+            pour_W = [transform_points(T @ X_WP, pour_points) for T in turns]
             left_tcps = [[T @ X_WP @ g.X_WG for T in turns] for g in left_grasps]
             for drop in DROPS:
                 column = _fall_column(task.LIP_AT, drop)
@@ -122,20 +119,22 @@ def room(embodiment_name: str, keep_fall_clear: bool = True) -> dict:
                     X_TW = (X_WB @ grasp.X_WG).inverse()
                     if (
                         keep_fall_clear
-                        and points_to_boxes(_moved(X_TW, column), boxes) < PATH_MARGIN
+                        and points_to_boxes(transform_points(X_TW, column), boxes) < PATH_MARGIN
                     ):
                         continue
-                    d_pour = min(points_to_boxes(_moved(X_TW, pts), boxes) for pts in pour_W)
+                    d_pour = min(
+                        points_to_boxes(transform_points(X_TW, pts), boxes) for pts in pour_W
+                    )
                     if d_pour <= best["clearance"]:
                         continue
-                    catch_W = _moved(X_WB, catch_points)
+                    catch_W = transform_points(X_WB, catch_points)
                     for X_WLs in left_tcps:
                         d_hands = min(
-                            points_to_boxes(_moved(X_TW @ X_WL, hand_points), boxes)
+                            points_to_boxes(transform_points(X_TW @ X_WL, hand_points), boxes)
                             for X_WL in X_WLs
                         )
                         d_catch = min(
-                            points_to_boxes(_moved(X_WL.inverse(), catch_W), boxes)
+                            points_to_boxes(transform_points(X_WL.inverse(), catch_W), boxes)
                             for X_WL in X_WLs
                         )
                         clearance = min(d_pour, d_hands, d_catch)

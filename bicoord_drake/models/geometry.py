@@ -12,11 +12,14 @@ import hashlib
 import os
 import tempfile
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import trimesh
 from pydantic import BaseModel, ConfigDict, Field, field_validator
+
+if TYPE_CHECKING:
+    from pydrake.math import RigidTransform
 
 Vec3 = tuple[float, float, float]
 Rgba = tuple[float, float, float, float]
@@ -113,6 +116,11 @@ def pose_matrix(xyz: Vec3, rpy: Vec3) -> np.ndarray:
     T[:3, :3] = R
     T[:3, 3] = xyz
     return T
+
+
+def transform_points(X_AB: RigidTransform, points_B: np.ndarray) -> np.ndarray:
+    """(N, 3) points given in frame B, expressed in frame A (``X_AB`` applied to each row)."""
+    return points_B @ X_AB.rotation().matrix().T + X_AB.translation()
 
 
 def rounded_box(extents: tuple[float, ...], radius: float) -> trimesh.Trimesh:

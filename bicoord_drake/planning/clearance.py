@@ -20,6 +20,7 @@ import trimesh
 from pydrake.math import RigidTransform
 
 from bicoord_drake.models.embodiment import other_side
+from bicoord_drake.models.geometry import transform_points
 from bicoord_drake.models.scene import TABLE_TOP
 
 #: Spacing (m) of the surface points an obstacle is sampled with.
@@ -50,10 +51,6 @@ def box_points(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.asarray(vertices, dtype=float)
 
 
-def _transform(X: RigidTransform, points: np.ndarray) -> np.ndarray:
-    return points @ X.rotation().matrix().T + X.translation()
-
-
 def _corners(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.array(
         [[a, b, c] for a in (lo[0], hi[0]) for b in (lo[1], hi[1]) for c in (lo[2], hi[2])]
@@ -77,7 +74,7 @@ def hands_gap(boxes, X_a: RigidTransform, X_b: RigidTransform) -> float:
     ``ArmSpec.hand_boxes``) at TCP poses `X_a` and `X_b`, from surface points of the first
     (about 2 * SAMPLE_SPACING apart); 0 where they overlap."""
     points = np.vstack([box_points(lo, hi) for lo, hi in boxes])
-    return points_to_boxes(_transform(X_b.inverse() @ X_a, points), boxes)
+    return points_to_boxes(transform_points(X_b.inverse() @ X_a, points), boxes)
 
 
 def side_pitch(
@@ -101,7 +98,7 @@ def hand_floor(boxes, X_WT: RigidTransform, z: float) -> float:
     """How far (m) the hand (`boxes` in the TCP frame, as ``ArmSpec.hand_boxes``) at TCP pose
     `X_WT` stays above the horizontal plane at height `z` (negative: it reaches below)."""
     corners = np.vstack([_corners(lo, hi) for lo, hi in boxes])
-    return float(np.min(_transform(X_WT, corners)[:, 2]) - z)
+    return float(np.min(transform_points(X_WT, corners)[:, 2]) - z)
 
 
 class HandRoom:
@@ -122,13 +119,13 @@ class HandRoom:
                 continue
             if other_held is not None and obj.name == other_held.name:
                 continue
-            env.append(_transform(model.object_pose(obj.name), shape_points(obj.shape)))
+            env.append(transform_points(model.object_pose(obj.name), shape_points(obj.shape)))
         self.env = np.vstack(env) if env else np.zeros((0, 3))
         X_WO = model.tcp_pose(q, other)
-        arm = [_transform(X_WO, box_points(lo, hi)) for lo, hi in self.boxes]
+        arm = [transform_points(X_WO, box_points(lo, hi)) for lo, hi in self.boxes]
         if other_held is not None:
             X = model.held_pose(other, q)
-            arm.append(_transform(X, shape_points(model.object(other_held.name).shape)))
+            arm.append(transform_points(X, shape_points(model.object(other_held.name).shape)))
         self.arm = np.vstack(arm)
         self._corners = [_corners(lo, hi) for lo, hi in self.boxes]
 
@@ -136,10 +133,10 @@ class HandRoom:
         """(distance to the environment and the table, distance to the other arm's hand and
         what it holds), m, of the hand at TCP pose `X_WT`."""
         X_TW = X_WT.inverse()
-        d_env = points_to_boxes(_transform(X_TW, self.env), self.boxes)
-        lowest = min(float(np.min(_transform(X_WT, c)[:, 2])) for c in self._corners)
+        d_env = points_to_boxes(transform_points(X_TW, self.env), self.boxes)
+        lowest = min(float(np.min(transform_points(X_WT, c)[:, 2])) for c in self._corners)
         d_env = min(d_env, lowest - TABLE_TOP)
-        d_arm = points_to_boxes(_transform(X_TW, self.arm), self.boxes)
+        d_arm = points_to_boxes(transform_points(X_TW, self.arm), self.boxes)
         return d_env, d_arm
 
     def margin(self, poses: Sequence[RigidTransform], env_need: float, arm_need: float) -> float:

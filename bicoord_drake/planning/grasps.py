@@ -37,7 +37,7 @@ from pydrake.common.eigen_geometry import AngleAxis
 from pydrake.math import RigidTransform, RotationMatrix
 
 from bicoord_drake.models.embodiment import Embodiment, GripperSpec, Side
-from bicoord_drake.models.geometry import Primitive
+from bicoord_drake.models.geometry import Primitive, transform_points
 from bicoord_drake.models.objects import (
     BinShape,
     BowlShape,
@@ -259,7 +259,7 @@ def slid_grasps(
     """`grasps` slid (:func:`slid`) by each of `slides` (m), smaller first, either way, where
     the object (`points_O`, (N, 3) points of it in its frame) still reaches `keep` (m, e.g.
     the pads' height) past the slid TCP at both ends along the slide."""
-    pts_W = points_O @ X_WO.rotation().matrix().T + X_WO.translation()
+    pts_W = transform_points(X_WO, points_O)
     out = []
     for s in slides:
         for g in grasps:

@@ -10,7 +10,7 @@ import numpy as np
 from scipy.spatial import Delaunay
 
 from bicoord_drake.models.embodiment import SIDES, other_side
-from bicoord_drake.models.geometry import Pose
+from bicoord_drake.models.geometry import Pose, transform_points
 from bicoord_drake.models.objects import (
     BinShape,
     BoxShape,
@@ -485,7 +485,7 @@ def _world_hull(ctx: SkillContext, name: str) -> np.ndarray:
     """(N, 3) vertices of `name`'s primitives, in world, as the planning model last saw it."""
     X = ctx.model.object_pose(name)
     pts = np.concatenate([p.trimesh().vertices for p in ctx.model.object(name).shape.primitives()])
-    return pts @ X.rotation().matrix().T + X.translation()
+    return transform_points(X, pts)
 
 
 def _footprint(shape: Shape) -> np.ndarray:

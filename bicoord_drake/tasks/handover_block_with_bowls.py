@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import nullcontext
 from functools import partial
@@ -497,40 +498,56 @@ def _catch_options(ctx: SkillContext) -> Iterator[tuple[int, np.ndarray]]:
     """(index, right-arm joints) holding the catching bowl level under the spout, its gripper
     on the side away from the pour and from the left wrist (+x, then toward the robot): one
     per reachable azimuth of CATCH_AZIMUTHS; none reachable raises catch_unreachable."""
-    from bicoord_drake.planning.ik import TcpTarget
-
     held = ctx.model.held["right"]
     tcp_x = ctx.model.embodiment.arm.gripper.tcp_x
     X_BT = held.X_GO.inverse() @ RigidTransform([tcp_x, 0.0, 0.0])
     p_BT = X_BT.translation()
     a0 = float(np.arctan2(p_BT[1], p_BT[0]))  # the grip's azimuth in the bowl frame
-    # A second pass only if every catch pose came too close to the left hand where it waits
-    # now (seed 4: the grippers 1.7-1.9 cm apart against 2 cm), as the left will hold the
-    # spout elsewhere: the poses solved with the left out of the way (at home), the meeting
-    # checking the pair.
-    home_left = ctx.model.home[ctx.model.side_slice("left")]
-    reasons = []
-    found = False
-    for layout, (offset, drop) in _meeting_layouts(ctx):
+    # Per layout, a second pass only if every catch pose came too close to the left hand where
+    # it waits now (seed 4: the grippers 1.7-1.9 cm apart against 2 cm), as the left will hold
+    # the spout elsewhere: the poses solved with the left out of the way (at home), the
+    # meeting checking the pair.
+    reasons: list[str] = []
+    caught: set[int] = set()  # the layouts with a catch pose
+    for (layout, (offset, drop)), left_away in itertools.product(
+        _meeting_layouts(ctx), (False, True)
+    ):
+        if left_away and layout in caught:
+            continue
         p_bowl = LIP_AT + offset + [0.0, 0.0, -drop - CATCH_BOWL.height]
-        for left_away in (False, True):
-            found_here = False
-            for k, azimuth in enumerate(CATCH_AZIMUTHS):
-                X_WB = RigidTransform(RotationMatrix.MakeZRotation(azimuth - a0), p_bowl)
-                with ctx.rehearsal() if left_away else nullcontext():
-                    if left_away:
-                        ctx.q = ctx.with_arm("left", home_left)
-                    try:
-                        q = solve_tcp(ctx, "right", TcpTarget(X_WB @ X_BT))
-                    except PlanningError as err:
-                        reasons.append(err.reason)
-                        continue
-                found = found_here = True
-                yield layout * len(CATCH_AZIMUTHS) + k, q
-            if found_here:
-                break
-    if not found:
+        for k, q in _catch_poses(ctx, X_BT, a0, p_bowl, left_away, reasons):
+            caught.add(layout)
+            yield layout * len(CATCH_AZIMUTHS) + k, q
+    if not caught:
         raise PlanningError("catch_unreachable", f"right cannot hold its bowl there ({reasons})")
+
+
+def _catch_poses(
+    ctx: SkillContext,
+    X_BT: RigidTransform,
+    a0: float,
+    p_bowl: np.ndarray,
+    left_away: bool,
+    reasons: list[str],
+) -> Iterator[tuple[int, np.ndarray]]:
+    """(k, right-arm joints) with the catching bowl's centre at `p_bowl`, gripped at azimuth
+    CATCH_AZIMUTHS[k] (`X_BT`: the TCP in the bowl's frame, at azimuth `a0`), for each
+    reachable k; the left where it is or, `left_away`, at home. Why each other k failed is
+    appended to `reasons`."""
+    from bicoord_drake.planning.ik import TcpTarget
+
+    home_left = ctx.model.home[ctx.model.side_slice("left")]
+    for k, azimuth in enumerate(CATCH_AZIMUTHS):
+        X_WB = RigidTransform(RotationMatrix.MakeZRotation(azimuth - a0), p_bowl)
+        with ctx.rehearsal() if left_away else nullcontext():
+            if left_away:
+                ctx.q = ctx.with_arm("left", home_left)
+            try:
+                q = solve_tcp(ctx, "right", TcpTarget(X_WB @ X_BT))
+            except PlanningError as err:
+                reasons.append(err.reason)
+                continue
+        yield k, q
 
 
 def _meeting_layouts(ctx: SkillContext) -> list[tuple[int, tuple[np.ndarray, float]]]:

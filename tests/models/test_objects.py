@@ -337,3 +337,14 @@ def test_a_block_dropped_flat_into_a_bin_stays_on_its_compliant_floor():
     back up far over the rim (the rigid floor: the control); on a compliant floor it stays."""
     assert max(_bounces(compliant=True)) < 0.005
     assert max(_bounces(compliant=False)) > 0.06  # above the rim: the test can tell them apart
+
+
+def test_transform_points_moves_rows_into_the_parent_frame():
+    from pydrake.all import RigidTransform, RotationMatrix
+
+    from bicoord_drake.models.geometry import transform_points
+
+    X_AB = RigidTransform(RotationMatrix.MakeZRotation(np.pi / 2), [1.0, 2.0, 3.0])
+    pts_B = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    assert np.allclose(transform_points(X_AB, pts_B), [[1.0, 3.0, 3.0], [1.0, 2.0, 4.0]])
+    assert np.allclose(transform_points(X_AB, pts_B), [X_AB @ p for p in pts_B])

@@ -23,6 +23,7 @@ import numpy as np
 from pydrake.all import RigidTransform
 
 from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.models.geometry import transform_points
 from bicoord_drake.models.layout import ActionLayout
 from bicoord_drake.planning.clearance import points_to_boxes, shape_points
 from bicoord_drake.planning.errors import PlanningError
@@ -247,10 +248,7 @@ class SkillContext:
         arm = self.model.embodiment.arm
         X_TO = self.model.tcp_pose(self.q, side).inverse() @ X_WO
         points = shape_points(self.model.object(name).shape)
-        return points_to_boxes(
-            points @ X_TO.rotation().matrix().T + X_TO.translation(),
-            arm.hand_boxes(self.opening[side]),
-        )
+        return points_to_boxes(transform_points(X_TO, points), arm.hand_boxes(self.opening[side]))
 
     def arm_q(self, side: str) -> np.ndarray:
         """The joint angles of `side` (a copy)."""
