@@ -278,9 +278,9 @@ def test_an_object_may_ask_to_be_rigid_only_if_it_is_a_bowl_or_a_pot():
 
 
 def test_a_fixed_object_may_have_compliant_parts():
-    from bicoord_drake.models.objects import BinShape, object_sdf
+    from bicoord_drake.models.objects import object_sdf
+    from bicoord_drake.tasks.clean_table import BIN as shape
 
-    shape = BinShape(size=(0.19, 0.17, 0.08), wall=0.006, floor=0.02)
     bin_ = SceneObject(name="bin", shape=shape, fixed=True, compliant_parts=(0,))
     parts = object_sdf(bin_).split("<collision ")[1:]
     assert "<drake:compliant_hydroelastic/>" in parts[0]  # the floor
@@ -292,20 +292,19 @@ def test_a_fixed_object_may_have_compliant_parts():
 
 
 def _bounces(compliant: bool) -> list[float]:
-    """Highest the block rose above where it rests on the bin's floor (m) after landing, for
-    each of DROP_HEIGHTS, the floor compliant or rigid."""
+    """Highest the block rose above where it rests on clean_table's bin floor (m) after
+    landing, for each of DROP_HEIGHTS, the floor compliant or rigid."""
     from bicoord_drake.config import StationConfig
     from bicoord_drake.models.geometry import Pose
-    from bicoord_drake.models.objects import BinShape
     from bicoord_drake.models.scene import TABLE_TOP
     from bicoord_drake.sim.simulation import Simulation
     from bicoord_drake.sim.station import build_station
+    from bicoord_drake.tasks.clean_table import BIN
 
-    shape = BinShape(size=(0.19, 0.17, 0.08), wall=0.006, floor=0.02)
-    rest = TABLE_TOP + 0.02 + 0.0225
+    rest = TABLE_TOP + BIN.floor_thickness + 0.0225
     bin_ = SceneObject(
         name="bin",
-        shape=shape,
+        shape=BIN,
         fixed=True,
         pose=Pose(xyz=(0.0, -0.05, TABLE_TOP)),
         compliant_parts=(0,) if compliant else (),
