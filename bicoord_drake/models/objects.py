@@ -199,6 +199,18 @@ class SceneObject(BaseModel):
         "(benchmarks/bench_flat_landing.md)",
     )
 
+    contact_margin: float | None = Field(
+        None,
+        ge=0,
+        le=0.01,
+        description="hydroelastic contact margin of this object's geometries, m, in place of "
+        "StationConfig.hydroelastic_margin (None: the station's): a light object whose flat base "
+        "is set down on the rigid table. Under SAP such a base let go a fraction of a millimetre "
+        "above the table can be thrown up (a bowl released on the table rose 1.5 cm, into the "
+        "opening fingers); with a 5 mm margin the contact acts before the faces meet "
+        "(benchmarks/bench_flat_landing.md)",
+    )
+
     @model_validator(mode="after")
     def _compliant_parts(self) -> SceneObject:
         if self.compliant_parts and not self.fixed:

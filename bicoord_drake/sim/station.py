@@ -30,6 +30,7 @@ from pydrake.all import (
     Diagram,
     DiagramBuilder,
     FixedOffsetFrame,
+    GeometryId,
     JointActuatorIndex,
     ModelInstanceIndex,
     MultibodyPlant,
@@ -189,11 +190,19 @@ def _configure_actuators(
         )
 
 
-def _set_hydroelastic_margin(plant: MultibodyPlant, scene_graph: SceneGraph, margin: float) -> None:
-    """Give every hydroelastic geometry (compliant or rigid) Drake's contact `margin` (m)."""
+def _set_hydroelastic_margin(
+    plant: MultibodyPlant,
+    scene_graph: SceneGraph,
+    margin: float,
+    geometries: list[GeometryId] | None = None,
+) -> None:
+    """Give every hydroelastic geometry (compliant or rigid) of `geometries` (default: all)
+    Drake's contact `margin` (m)."""
     inspector = scene_graph.model_inspector()
     source = plant.get_source_id()
-    for geometry in inspector.GetAllGeometryIds(Role.kProximity):
+    if geometries is None:
+        geometries = inspector.GetAllGeometryIds(Role.kProximity)
+    for geometry in geometries:
         props = inspector.GetProximityProperties(geometry)
         if not props.HasProperty("hydroelastic", "compliance_type"):
             continue
@@ -222,6 +231,10 @@ def build_station(scene: Scene, config: StationConfig | None = None) -> Station:
     object_bodies = add_scene_objects(plant, scene, config.rigid_object_kinds)
     if config.hydroelastic_margin > 0:
         _set_hydroelastic_margin(plant, scene_graph, config.hydroelastic_margin)
+    for obj in scene.objects:
+        if obj.contact_margin is not None:
+            geometries = plant.GetCollisionGeometriesForBody(object_bodies[obj.name])
+            _set_hydroelastic_margin(plant, scene_graph, obj.contact_margin, geometries)
     plant.Finalize()
 
     interpolator = builder.AddNamedSystem(

@@ -4,6 +4,7 @@ arm holds the two above it up, then put the pulled cube on top."""
 from __future__ import annotations
 
 from collections.abc import Iterator
+from contextlib import contextmanager
 from functools import partial
 
 import numpy as np
@@ -426,20 +427,13 @@ def _together(ctx: SkillContext, ext: str, ext_plan: ArmPlan, lifter_plan: ArmPl
     return merge(ctx, plans["left"], plans["right"], stretch=False, max_delay=0, ignore=ignore)
 
 
-class _close:
+@contextmanager
+def _close(ctx: SkillContext) -> Iterator[None]:
     """Within the block the arms may come CLOSE_CLEARANCE apart (both hands on one stack);
     the checker's padding is set to that (no environment margin) for the merged motions."""
-
-    def __init__(self, ctx: SkillContext) -> None:
-        self.ctx = ctx
-
-    def __enter__(self) -> None:
-        self.saved = self.ctx.clearance
-        self.ctx.clearance = CLOSE_CLEARANCE
-        self.ctx.model.set_padding(CLOSE_CLEARANCE, 0.0)
-
-    def __exit__(self, *exc) -> None:
-        self.ctx.clearance = self.saved
+    with ctx.tuned(clearance=CLOSE_CLEARANCE):
+        ctx.model.set_padding(CLOSE_CLEARANCE, 0.0)
+        yield
 
 
 def _grasps(ctx: SkillContext, scene: Scene, name: str, side: str, want: np.ndarray) -> list[Grasp]:

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from contextlib import contextmanager
 from functools import partial
 
 import numpy as np
@@ -345,7 +344,7 @@ class SweepBlock(Task):
         above = RigidTransform(start.rotation(), start.translation() + [0.0, 0.0, APPROACH])
         right = move_tcp(ctx, "right", held_tcp(ctx, "right", above), label="brush above")
         yield from run(merge(ctx, left, right))
-        with _tuned(ctx, clearance=TOOL_CLEARANCE):
+        with ctx.tuned(clearance=TOOL_CLEARANCE):
             yield from run(merge(ctx, None, sweep(ctx, start), ignore=[CUBE]))
         # ---- stage 3: the right lifts the brush away, the left empties the pan into the bin
         # (the cube rides in the pan: the planning model, which does not carry it, leaves it
@@ -448,9 +447,9 @@ def sweep(ctx: SkillContext, start: RigidTransform) -> ArmPlan:
     def line(a, b):
         return lambda s: held_tcp(ctx, "right", RigidTransform(R, a + s * (b - a)))
 
-    with _tuned(ctx, clearance=TOOL_CLEARANCE):
+    with ctx.tuned(clearance=TOOL_CLEARANCE):
         down = track(ctx, "right", line(p_up, p0), APPROACH, 0.0, label="brush down")
-        with _tuned(ctx, speed=SWEEP_SPEED):
+        with ctx.tuned(speed=SWEEP_SPEED):
             dist = float(p0[0] - p1[0])
             along = track(ctx, "right", line(p0, p1), dist, 0.0, label="sweep", ignore=[CUBE])
     plan = down.then(along)
@@ -463,7 +462,7 @@ def brush_up(ctx: SkillContext) -> ArmPlan:
     X = ctx.model.tcp_pose(ctx.q, "right")
     up = RigidTransform(X.rotation(), X.translation() + [BACK_OFF, 0.0, APPROACH])
     a, b = X.translation(), up.translation()
-    with _tuned(ctx, clearance=TOOL_CLEARANCE):
+    with ctx.tuned(clearance=TOOL_CLEARANCE):
         return track(
             ctx,
             "right",
@@ -473,18 +472,6 @@ def brush_up(ctx: SkillContext) -> ArmPlan:
             label="brush up",
             ignore=[CUBE],
         )
-
-
-@contextmanager
-def _tuned(ctx: SkillContext, *, speed: float | None = None, clearance: float | None = None):
-    """Plan with another speed and/or inter-arm clearance (held tools included) meanwhile."""
-    saved = ctx.speed, ctx.clearance
-    ctx.speed = saved[0] if speed is None else speed
-    ctx.clearance = saved[1] if clearance is None else clearance
-    try:
-        yield
-    finally:
-        ctx.speed, ctx.clearance = saved
 
 
 def pan_over_bin() -> RigidTransform:

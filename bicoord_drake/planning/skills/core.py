@@ -290,6 +290,19 @@ class SkillContext:
             raise
 
     @contextmanager
+    def tuned(
+        self, *, speed: float | None = None, clearance: float | None = None
+    ) -> Iterator[None]:
+        """Plan with another `speed` and/or inter-arm `clearance` (m) meanwhile (None: keep)."""
+        saved = self.speed, self.clearance
+        self.speed = saved[0] if speed is None else speed
+        self.clearance = saved[1] if clearance is None else clearance
+        try:
+            yield
+        finally:
+            self.speed, self.clearance = saved
+
+    @contextmanager
     def rehearsal(self) -> Iterator[None]:
         """Plan inside the block only to see whether it can be planned: afterwards everything
         :meth:`transaction` restores, and the checker's padding, is put back as it was, whether
