@@ -182,6 +182,7 @@ class HandoverBlockWithBowls(Task):
     name = "handover_block_with_bowls"
     step_limit = 350
     expert_speed = 0.8
+    supported_robots = ("aloha_viperx", "franka_pair")
     instructions_seen = (
         "Pour the red block from the left bowl into the right bowl, then put that bowl on the "
         "grey square.",
