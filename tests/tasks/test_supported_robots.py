@@ -36,7 +36,7 @@ from bicoord_drake.tasks.registry import (
 ROOT = Path(__file__).resolve().parents[2]
 ROBOT = "franka_pair"
 #: Tasks whose franka expert keeps < 85 % of seeds 0-29 (benchmarks/franka_experts.md).
-UNDECLARED = ("collect_pens", "cook", "handover_block_with_bowls")
+UNDECLARED = ("collect_pens", "cook")
 REFUSED = "task 'cook' does not support the robot 'franka_pair': it supports aloha_viperx"
 
 
@@ -86,9 +86,9 @@ def test_the_check_names_the_task_the_robot_and_its_robots():
     with pytest.raises(ValueError, match=REFUSED):
         check_supported(get_task("cook"), ROBOT)  # a Task object: its class's declaration
     with pytest.raises(ValueError) as err:
-        check_supported("jigsaw, cook,handover_block_with_bowls", ROBOT)
+        check_supported("jigsaw, cook,collect_pens", ROBOT)
     message = str(err.value)
-    assert "'cook', 'handover_block_with_bowls' do not support the robot 'franka_pair'" in message
+    assert "'cook', 'collect_pens' do not support the robot 'franka_pair'" in message
     assert "jigsaw" not in message and len(message.splitlines()) == 1
     check_supported("jigsaw", ROBOT)
     check_supported("all", ROBOT)  # the tasks that support it
