@@ -207,8 +207,9 @@ class SceneObject(BaseModel):
         "StationConfig.hydroelastic_margin (None: the station's): a light object whose flat base "
         "is set down on the rigid table. Under SAP such a base let go a fraction of a millimetre "
         "above the table can be thrown up (a bowl released on the table rose 1.5 cm, into the "
-        "opening fingers); with a 5 mm margin the contact acts before the faces meet "
-        "(benchmarks/bench_flat_landing.md)",
+        "opening fingers); with a margin of a few mm the contact acts before the faces meet "
+        "(benchmarks/bench_flat_landing.md). It acts on every face of the object: keep it below "
+        "the gap a loosened grip leaves (handover_block_with_bowls: 3 mm)",
     )
 
     @model_validator(mode="after")
