@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import platform
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -122,6 +123,15 @@ def landing(variant: Variant, height: float) -> tuple[float, float, float]:
     return float(np.sqrt(2 * 9.81 * height)), up, spin
 
 
+def drops(variant: Variant, heights: Sequence[float]) -> tuple[np.ndarray, int, float]:
+    """`variant` dropped from each of `heights`: the upward speeds after landing (m/s), how
+    many came back up faster than they arrived (gained energy), the largest spin (rad/s)."""
+    results = [landing(variant, h) for h in heights]
+    ups = np.array([up for _, up, _ in results])
+    gained = int(np.sum(ups > np.array([v for v, _, _ in results])))
+    return ups, gained, max(s for _, _, s in results)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=Path, help="write the table here (markdown)")
@@ -129,15 +139,11 @@ def main() -> None:
     rows = []
     for variant in VARIANTS:
         t0 = time.perf_counter()
-        results = [landing(variant, h) for h in HEIGHTS]
-        ups = np.array([up for _, up, _ in results])
-        gained = int(np.sum(ups > np.array([v for v, _, _ in results])))
-        low = [landing(variant, h) for h in LOW_HEIGHTS]
-        low_ups = np.array([up for _, up, _ in low])
-        low_gained = int(np.sum(low_ups > np.array([v for v, _, _ in low])))
+        ups, gained, spin = drops(variant, HEIGHTS)
+        low_ups, low_gained, _ = drops(variant, LOW_HEIGHTS)
         rows.append(
             f"| {variant.name} | {gained}/{len(HEIGHTS)} | {int(np.sum(ups > 1.0))} | "
-            f"{ups.max():.2f} | {max(s for _, _, s in results):.0f} | "
+            f"{ups.max():.2f} | {spin:.0f} | "
             f"{low_gained}/{len(LOW_HEIGHTS)} | {low_ups.max():.2f} | "
             f"{time.perf_counter() - t0:.1f} |"
         )
