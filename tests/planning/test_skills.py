@@ -496,3 +496,15 @@ def test_carried_spans_follow_picks_and_releases():
     passed = [(2, "left", "detach", "a"), (2, "right", "attach", "a")]
     assert carried_spans(ctx, Motion(q, np.ones((10, 2)), passed)) == []
     assert carried_spans(ctx, Motion(q, np.ones((10, 2)), events), ignore=["a", "b"]) == []
+
+
+def test_tuned_settings_hold_inside_the_block_and_come_back_after_a_failure():
+    ctx = sk.SkillContext(PlanningModel(Scene(name="empty")), speed=0.5)
+    before = ctx.speed, ctx.clearance, ctx.env_clearance
+    with pytest.raises(PlanningError):
+        with ctx.tuned(speed=0.3, clearance=0.01, env_clearance=0.001):
+            assert (ctx.speed, ctx.clearance, ctx.env_clearance) == (0.3, 0.01, 0.001)
+            raise PlanningError("ik_unreachable", "inside the block")
+    assert (ctx.speed, ctx.clearance, ctx.env_clearance) == before
+    with ctx.tuned(env_clearance=0.002):  # the others kept
+        assert (ctx.speed, ctx.clearance, ctx.env_clearance) == (*before[:2], 0.002)

@@ -222,3 +222,21 @@ def test_expert_fills_the_holder_on_two_seeds(task):
         result = run_expert(EpisodeSetup(task=task, seed=seed, station=StationConfig(render=False)))
         assert result.success, (seed, result.reason)
         assert len(result.recorder) <= task.step_limit
+
+
+@pytest.mark.parametrize("embodiment", ["aloha_viperx", "franka_pair"])
+def test_pens_are_gripped_up_the_pads_with_the_fingertips_just_over_the_table(task, embodiment):
+    """The grasp holds a lying pen's axis 5-7.5 mm up the pads (creeping out past the
+    fingertips when held at their lower edge), the fingertips 2 mm over the table."""
+    from bicoord_drake.planning.model import PlanningModel
+    from bicoord_drake.planning.skills import SkillContext
+
+    scene = task.sample_scene(SEED)
+    ctx = SkillContext(PlanningModel(scene, embodiment))
+    pad = ctx.model.embodiment.arm.gripper.pad_length
+    for name in cp.PENS:
+        radius = scene.object(name).shape.radius
+        for grasp in cp.pen_grasps(ctx, "left", name):
+            tips = grasp.X_WG.translation()[2] - pad / 2
+            assert tips == pytest.approx(TABLE_TOP + 0.002)
+            assert 0.005 - 1e-9 <= TABLE_TOP + radius - tips <= 0.0075 + 1e-9

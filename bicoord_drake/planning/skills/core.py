@@ -291,16 +291,22 @@ class SkillContext:
 
     @contextmanager
     def tuned(
-        self, *, speed: float | None = None, clearance: float | None = None
+        self,
+        *,
+        speed: float | None = None,
+        clearance: float | None = None,
+        env_clearance: float | None = None,
     ) -> Iterator[None]:
-        """Plan with another `speed` and/or inter-arm `clearance` (m) meanwhile (None: keep)."""
-        saved = self.speed, self.clearance
+        """Plan with another `speed`, inter-arm `clearance` (m) and/or clearance from the scene
+        `env_clearance` (m) meanwhile (None: keep)."""
+        saved = self.speed, self.clearance, self.env_clearance
         self.speed = saved[0] if speed is None else speed
         self.clearance = saved[1] if clearance is None else clearance
+        self.env_clearance = saved[2] if env_clearance is None else env_clearance
         try:
             yield
         finally:
-            self.speed, self.clearance = saved
+            self.speed, self.clearance, self.env_clearance = saved
 
     @contextmanager
     def rehearsal(self) -> Iterator[None]:
