@@ -183,6 +183,7 @@ class CollectPens(Task):
 
     name = "collect_pens"
     step_limit = 900
+    supported_robots = ("aloha_viperx", "franka_pair")
     ci_seed = 0
     instructions_seen = (
         "Put all four pens into the pen holder.",
