@@ -87,6 +87,12 @@ PAPER_DP = {
 _LOSS = re.compile(r"\bloss:([0-9.eE+-]+)")
 
 
+def final_loss(train_log: Path) -> float | None:
+    """The last training loss lerobot-train printed to `train_log` (None: none printed)."""
+    losses = _LOSS.findall(train_log.read_text())
+    return float(losses[-1]) if losses else None
+
+
 # --------------------------------------------------------------------------- environment
 def subprocess_env() -> dict[str, str]:
     """This checkout first on PYTHONPATH, no network, no wandb."""
@@ -381,7 +387,7 @@ def run_task(task: str, args: argparse.Namespace, done: set[tuple]) -> list[dict
             write_json_atomic(output / TRAINED, {"command": shown(train), "seconds": train_seconds})
         else:
             print(f"[{task}] {policy}: trained before ({output}), evaluating it", flush=True)
-        losses = _LOSS.findall(train_log.read_text())
+        loss = final_loss(train_log)
         evaluate = evaluate_command(task, output, work / "eval", args)
         print(f"[{task}] evaluate {policy}: {args.eval_episodes} rollouts", flush=True)
         stdout, eval_seconds = run(evaluate, work / "logs" / f"evaluate_{output.name}.log")
@@ -399,7 +405,7 @@ def run_task(task: str, args: argparse.Namespace, done: set[tuple]) -> list[dict
                 "batch_size": args.batch_size,
                 "settings": run_settings(policy, args),
                 "train_seconds": round(train_seconds, 1),
-                "final_loss": float(losses[-1]) if losses else None,
+                "final_loss": loss,
                 "eval_seconds": round(eval_seconds, 1),
                 "n": report["n"],
                 "SR": report["SR"],

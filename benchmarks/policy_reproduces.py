@@ -365,8 +365,7 @@ def run_task(task: str, args: argparse.Namespace, run_command: str) -> dict[str,
         _remove(paths.checkpoint)  # lerobot-train refuses an existing directory
         _step(task, 3, f"train ACT: {args.steps} steps, batch {args.batch_size} (log {train_log})")
         _, train_seconds = baselines.run(train, train_log)
-        losses = baselines._LOSS.findall(train_log.read_text())
-        loss = float(losses[-1]) if losses else None
+        loss = baselines.final_loss(train_log)
         record = {"command": baselines.shown(train), "seconds": train_seconds, "final_loss": loss}
         baselines.write_json_atomic(paths.checkpoint / baselines.TRAINED, record)
         print(f"[{task}] trained in {train_seconds / 60:.1f} min, final loss {loss}", flush=True)
