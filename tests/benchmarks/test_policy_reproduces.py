@@ -35,6 +35,14 @@ def test_bad_arguments_are_refused(pr, argv):
 def test_the_act_arguments_are_those_of_the_baselines_notes(pr):
     notes = (BENCHMARKS / "baselines_notes.md").read_text()
     assert f"act={pr.ACT_CPU_ARGS}" in notes
+    # the proof's own: the baselines' model at learning rate 1e-4, with temporal ensembling
+    extra = set(pr.REPRODUCE_ARGS.split()) - set(pr.ACT_CPU_ARGS.split())
+    assert extra == {
+        "--policy.n_action_steps=1",
+        "--policy.temporal_ensemble_coeff=0.01",
+        "--policy.optimizer_lr=1e-4",
+    }
+    assert "--policy.n_action_steps=20" not in pr.REPRODUCE_ARGS
 
 
 def demos(tmp_path: Path, task: str, n: int) -> list[Path]:
@@ -65,7 +73,7 @@ def test_commands_train_on_the_n_demos_and_evaluate_on_their_seeds(pr, tmp_path)
     train = pr.train_command("balance_roller", args, paths)
     assert f"--dataset.root={paths.dataset}" in train and "--policy.type=act" in train
     assert set(pr.baselines.COMMON_TRAIN_ARGS) <= set(train)
-    assert set(pr.ACT_CPU_ARGS.split()) <= set(train)
+    assert set(pr.REPRODUCE_ARGS.split()) <= set(train)
     assert {"--steps=5000", "--batch_size=8", "--seed=1000"} <= set(train)
     assert train[-1] == f"--output_dir={paths.checkpoint}"
 
@@ -173,6 +181,12 @@ def test_section_has_verdict_settings_seeds_and_commands(pr):
     )
     assert "policy_reproduces.py --tasks balance_roller" in text
     assert "not the training seeds" not in text
+    assert "open-loop error" not in text  # a result from before the fit was measured
+
+    fit = {"mean": 0.0123, "max": 0.5, "episodes": [{"episode": 0, "frames": 9, "mean": 0.0123}]}
+    fitted = pr.format_section({**fake_result(pr), "open_loop": fit})
+    row = "| open-loop error on the training frames, mean (largest) | 0.0123 (0.500); per episode"
+    assert row in fitted
 
     low = pr.format_section(fake_result(pr, reproduced=1))
     assert "**reproduces 1 of 3 training seeds (goal: >= 2 of 3)**: goal not met." in low
@@ -239,12 +253,16 @@ class FakeSteps:
 def test_every_step_resumes_and_force_redoes_them(pr, tmp_path, monkeypatch):
     steps = FakeSteps(tmp_path, [True, True, False])
     monkeypatch.setattr(pr.baselines, "run", steps)
+    fits = []
+    fit = {"mean": 0.01, "max": 0.1, "episodes": []}
+    monkeypatch.setattr(pr, "open_loop_error", lambda ckpt, data: fits.append(ckpt) or fit)
     argv = ["--tasks", "balance_roller", "--work", str(tmp_path / "work"), "--steps", "20"]
     args = pr.parse_args(argv)
     result = pr.run_task("balance_roller", args, "python benchmarks/policy_reproduces.py")
     assert steps.calls == ["generate", "export", "train", "evaluate"]
     assert result["train_seeds"] == result["eval_seeds"] == [0, 1, 2] and result["seeds_match"]
     assert result["reproduced"] == 2 and result["final_loss"] == 0.125
+    assert result["open_loop"] == fit and fits == [pr.task_paths("balance_roller", args).checkpoint]
     assert result["train_seconds"] == 600.0 and result["reused"] == []
     assert "--episodes 3" in result["commands"]["generate"]
     assert result["commands"]["evaluate"].startswith("python scripts/evaluate.py")
@@ -283,4 +301,5 @@ def test_one_demo_end_to_end(pr, tmp_path, monkeypatch):
     assert "| training seeds (the exported demonstrations) | 0 |" in text
     assert "| seeds evaluated (from the report) | 0 |" in text
     assert "training seeds (goal: >= 1 of 1)" in text
+    assert "| open-loop error on the training frames, mean (largest) |" in text
     assert sys.executable not in text  # commands recorded with `python`
