@@ -62,7 +62,12 @@ def run_one(task: str, rate: float, seed: int) -> Run:
     setup = EpisodeSetup(
         task=task, seed=seed, station=StationConfig(control_rate=rate, render=False)
     )
-    result = run_expert(setup)
+    try:
+        result = run_expert(setup)
+    except Exception as err:  # noqa: BLE001 - a crash of one seed is its row, as in generate.py
+        wall = time.perf_counter() - start
+        reason = f"{type(err).__name__}: {str(err)[:80]}"
+        return Run(task, rate, seed, False, reason, 0, float("nan"), wall)
     wall = time.perf_counter() - start
     if not result.success:
         return Run(task, rate, seed, False, str(result.reason), 0, float("nan"), wall)
