@@ -1,8 +1,8 @@
 #!/usr/bin/env python
 """Proof of the loop: a policy trained here reproduces the demonstrations it was trained on.
 
-    python benchmarks/policy_reproduces.py                       # both tasks, 3 demos, 5000 steps
-    python benchmarks/policy_reproduces.py --tasks balance_roller --demos 3 --steps 5000 \\
+    python benchmarks/policy_reproduces.py                       # both tasks, 3 demos, 20000 steps
+    python benchmarks/policy_reproduces.py --tasks balance_roller --demos 3 --steps 20000 \\
         --batch-size 8 --work out/policy_reproduces --out benchmarks/policy_reproduces.md
 
 For each task of ``--tasks`` (default balance_roller,place_plate_and_cup):
@@ -81,13 +81,14 @@ ACT_CPU_ARGS = (
     "--policy.n_encoder_layers=2 --policy.n_decoder_layers=1 --policy.chunk_size=20 "
     "--policy.n_action_steps=20"
 )
-#: What this proof trains with beyond the baselines' CPU-sized ACT (measured on balance_roller,
-#: 3 demonstrations, 5000 steps, batch 8, see policy_reproduces.md): lerobot's default learning
-#: rate (1e-5, set for a pretrained backbone) left the from-scratch model far from its frames
-#: (loss 0.95, open-loop error 0.08-0.11 rad; 1e-4: loss 0.10, 0.03-0.04 rad), and a 20-step
-#: chunk played open loop drifts off the demonstrated states (0 of 3 at either rate); ACT's
-#: temporal ensembling (one action per step from every overlapping chunk, weights exp(-0.01 i),
-#: ACT's paper) with the 1e-4 model: 2 of 3.
+#: What this proof trains with beyond the baselines' CPU-sized ACT (balance_roller, 3
+#: demonstrations, batch 8; the runs are in policy_reproduces.md, "Diagnosis"): lerobot's
+#: default learning rate (1e-5, set for a pretrained backbone) left the from-scratch model far
+#: from its frames (5000 steps: loss 0.95, open-loop error 0.07-0.11 rad; 1e-4: loss 0.10,
+#: 0.03-0.04 rad; 20000 steps at 1e-4: 0.066, 0.014-0.025 rad), and a 20-step chunk played
+#: open loop drifts off the demonstrated states (0 of 3 at either rate); ACT's temporal
+#: ensembling (one action per step from every overlapping chunk, weights exp(-0.01 i), ACT's
+#: paper) makes it 1-2 of 3.
 REPRODUCE_ARGS = (
     ACT_CPU_ARGS.replace(
         "--policy.n_action_steps=20",
@@ -120,7 +121,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         "--tasks", default=",".join(DEFAULT_TASKS), help="comma-separated task names"
     )
     parser.add_argument("--demos", type=int, default=3, help="demonstrations = training seeds")
-    parser.add_argument("--steps", type=int, default=5000, help="lerobot-train --steps")
+    parser.add_argument("--steps", type=int, default=20000, help="lerobot-train --steps")
     parser.add_argument("--batch-size", type=int, default=8, help="lerobot-train --batch_size")
     parser.add_argument("--train-seed", type=int, default=1000, help="lerobot-train --seed")
     parser.add_argument(

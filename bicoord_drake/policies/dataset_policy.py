@@ -25,8 +25,10 @@ its action size is the dataset's, and its control rate is the dataset's ``fps``.
 observed joint state is compared with the dataset's ``observation.state`` of the same frame
 (frame ``t`` is the observation *before* action ``t``), and with the frames one before and one
 after, so that a one-step shift between observations and actions shows as a better match at a
-neighbour; with ``images=1`` the rendered cameras are compared the same way with the dataset's
-decoded video frames (mean |error| in 0..255 levels; cameras of another size are skipped).
+neighbour; so are the end poses and the environment state (the task objects' poses) where the
+dataset has them, the other inputs of a state-based policy; with ``images=1`` the rendered
+cameras are compared the same way with the dataset's decoded video frames (mean |error| in
+0..255 levels; cameras of another size are skipped).
 :attr:`DatasetPlaybackPolicy.alignments` has the figures of every rollout, ``close()`` prints
 their summary on stderr, and ``state_tolerance`` turns a state error above it into a failure of
 the step, naming the frame, the error and the best-matching neighbour.
@@ -51,6 +53,7 @@ from typing import Any
 
 import numpy as np
 
+from bicoord_drake.data.environment_state import ENVIRONMENT_STATE, environment_state
 from bicoord_drake.policies import PolicyLoadError, env_action_size, spec_options
 
 PREFIX = "lerobot-dataset:"
@@ -66,6 +69,9 @@ CAMERAS = {
 }
 #: Frames compared around the played one: one before, the same, one after.
 SHIFTS = (-1, 0, 1)
+#: The other observation vectors compared when the dataset has them (what a state-based policy
+#: takes besides the joints): their names in the alignment and their dataset features.
+VECTORS = {"end poses": "observation.endpose", "environment state": ENVIRONMENT_STATE}
 
 
 def _flag(value: str) -> bool:
@@ -113,7 +119,10 @@ class Alignment:
     of frame t + s| over the played frames ``t`` (rad or opening units), for s = -1, 0, +1
     (s = 0: the frame whose action is played; a neighbour matching better means a shift).
     ``image_error[s]``: the mean |rendered - decoded| of the compared camera images, 0..255
-    levels (None: not compared)."""
+    levels (None: not compared). ``vector_error[name][s]``: as ``state_error`` for the other
+    observation vectors of :data:`VECTORS` the dataset and the observation both have (end
+    poses: m and quaternion units; environment state: the objects' poses, as a state-based
+    policy gets them)."""
 
     task: str
     seed: int
@@ -123,10 +132,15 @@ class Alignment:
     state_error: dict[int, float] = field(default_factory=lambda: dict.fromkeys(SHIFTS, 0.0))
     image_error: dict[int, float] | None = None
     images_compared: int = 0
+    vector_error: dict[str, dict[int, float]] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         out = asdict(self)
         out["state_error"] = {str(k): v for k, v in self.state_error.items()}
+        out["vector_error"] = {
+            name: {str(k): v for k, v in errors.items()}
+            for name, errors in self.vector_error.items()
+        }
         if self.image_error is not None:
             out["image_error"] = {str(k): v for k, v in self.image_error.items()}
         return out
@@ -144,6 +158,8 @@ class Alignment:
                 f"; images mean |error| {i[0]:.2f} levels (t-1: {i[-1]:.2f}, t+1: {i[1]:.2f}) "
                 f"over {self.images_compared} frames"
             )
+        for name, e in self.vector_error.items():
+            line += f"; max |{name} - frame t| {e[0]:.2e} (t-1: {e[-1]:.2e}, t+1: {e[1]:.2e})"
         return line
 
 
@@ -314,6 +330,11 @@ class DatasetPlaybackPolicy:
         rows = column("index", np.int64).reshape(-1)
         actions = column(ACTION).reshape(len(episodes), -1)
         states = column(STATE).reshape(len(episodes), -1)
+        vectors = {
+            name: column(key).reshape(len(episodes), -1)
+            for name, key in VECTORS.items()
+            if key in table.column_names
+        }
         out = {}
         for index in np.unique(episodes):
             mine = np.flatnonzero(episodes == index)
@@ -327,6 +348,7 @@ class DatasetPlaybackPolicy:
                 "action": actions[order],
                 "state": states[order],
                 "rows": rows[order],
+                "vectors": {name: values[order] for name, values in vectors.items()},
             }
         return out
 
@@ -380,11 +402,13 @@ class DatasetPlaybackPolicy:
         self, task: str, seed: int, source: str | Path | None = None
     ) -> dict[str, np.ndarray]:
         """The dataset's episode of `task` and `seed` (:meth:`find`) in frame order: its
-        ``action`` (T, A) and ``state`` (``observation.state``, T x A) as float64."""
+        ``action`` (T, A), ``state`` (``observation.state``, T x A) and the :data:`VECTORS` it
+        has, under their names, as float64."""
         columns = self._columns[self.find(task, seed, source).index]
         return {
             "action": np.asarray(columns["action"], dtype=float),
             "state": np.asarray(columns["state"], dtype=float),
+            **{k: np.asarray(v, dtype=float) for k, v in columns["vectors"].items()},
         }
 
     # ---------------------------------------------------------------- policy interface
@@ -492,8 +516,24 @@ class DatasetPlaybackPolicy:
                     f"{self._played.seed}) by {errors[0]:.3g} > state_tolerance "
                     f"{self.state_tolerance:g}{hint}"
                 )
+        for name, frames in columns["vectors"].items():
+            self._compare_vector(name, _live_vector(obs, name), frames, t, alignment)
         if self.images:
             self._compare_images(obs, t, alignment)
+
+    @staticmethod
+    def _compare_vector(
+        name: str, live: np.ndarray | None, frames: np.ndarray, t: int, alignment: Alignment
+    ) -> None:
+        """Record the largest |live - frame t + s| of one observation vector (not compared
+        when the observation lacks it or its size differs)."""
+        if live is None:
+            return
+        errors = alignment.vector_error.setdefault(name, dict.fromkeys(SHIFTS, 0.0))
+        for shift in SHIFTS:
+            k = t + shift
+            if 0 <= k < len(frames) and len(frames[k]) == len(live):
+                errors[shift] = max(errors[shift], float(np.max(np.abs(live - frames[k]))))
 
     def _compare_images(self, obs: dict[str, Any], t: int, alignment: Alignment) -> None:
         cameras = [
@@ -534,6 +574,22 @@ class DatasetPlaybackPolicy:
             alignment.image_error[shift] = mean + (error - mean) / n
             self._image_counts[shift] = n
         alignment.images_compared += 1
+
+
+def _live_vector(obs: dict[str, Any], name: str) -> np.ndarray | None:
+    """The observation's value of the :data:`VECTORS` entry `name`, as a policy gets it: keyed
+    by its LeRobot feature (the Gymnasium environment) or computed from
+    :mod:`bicoord_drake.env`'s ``left_endpose``/``right_endpose`` and ``object_poses`` (None if
+    the observation has neither)."""
+    key = VECTORS[name]
+    if key in obs:
+        return np.asarray(obs[key], dtype=float).reshape(-1)
+    if name == "end poses" and "left_endpose" in obs and "right_endpose" in obs:
+        return np.concatenate([obs["left_endpose"], obs["right_endpose"]]).astype(float)
+    poses = obs.get("object_poses")
+    if name == "environment state" and poses:
+        return np.asarray(environment_state(poses, tuple(poses)), dtype=float)
+    return None
 
 
 def load_dataset_policy(spec: str, **kwargs: Any) -> DatasetPlaybackPolicy:

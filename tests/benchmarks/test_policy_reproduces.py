@@ -19,7 +19,7 @@ def pr():
 def test_defaults(pr):
     args = pr.parse_args([])
     assert args.tasks == ["balance_roller", "place_plate_and_cup"]
-    assert (args.demos, args.steps, args.batch_size, args.train_seed) == (3, 5000, 8, 1000)
+    assert (args.demos, args.steps, args.batch_size, args.train_seed) == (3, 20000, 8, 1000)
     assert args.out == pr.ROOT / "benchmarks" / "policy_reproduces.md"
     assert args.work.is_absolute() and not args.force
     args = pr.parse_args(["--tasks", " jigsaw,cook,jigsaw ", "--demos", "1", "--force"])
@@ -74,7 +74,7 @@ def test_commands_train_on_the_n_demos_and_evaluate_on_their_seeds(pr, tmp_path)
     assert f"--dataset.root={paths.dataset}" in train and "--policy.type=act" in train
     assert set(pr.baselines.COMMON_TRAIN_ARGS) <= set(train)
     assert set(pr.REPRODUCE_ARGS.split()) <= set(train)
-    assert {"--steps=5000", "--batch_size=8", "--seed=1000"} <= set(train)
+    assert {"--steps=20000", "--batch_size=8", "--seed=1000"} <= set(train)
     assert train[-1] == f"--output_dir={paths.checkpoint}"
 
     evaluate = pr.evaluate_command("balance_roller", args, paths)

@@ -51,10 +51,17 @@ def run_script(name: str, args: list[str], tmp: Path, timeout: int = 1800):
 
 
 def generate_and_export(
-    tmp: Path, task: str, episodes: int, *, render: bool = False, resolution: str = "64x48"
+    tmp: Path,
+    task: str,
+    episodes: int,
+    *,
+    render: bool = False,
+    resolution: str = "64x48",
+    environment_state: bool = False,
 ) -> Exported:
     """Generate `episodes` demonstrations of `task` (seeds from 0, one process) and export them
-    to LeRobot v3.0 (without images unless `render`)."""
+    to LeRobot v3.0 (without images unless `render`; with the objects' poses if
+    `environment_state`)."""
     data, lerobot = tmp / "data", tmp / "lerobot"
     cameras = ["--resolution", resolution] if render else ["--no-render"]
     run_script(
@@ -65,7 +72,9 @@ def generate_and_export(
     )
     run_script(
         "export",
-        [str(data), "--to", "lerobot", "--out", str(lerobot)] + ([] if render else ["--no-images"]),
+        [str(data), "--to", "lerobot", "--out", str(lerobot)]
+        + ([] if render else ["--no-images"])
+        + (["--environment-state"] if environment_state else []),
         tmp,
     )
     lines = (lerobot / "meta" / "bicoord_episodes.jsonl").read_text().splitlines()
@@ -79,4 +88,6 @@ def balance_roller_export(tmp_path_factory) -> Exported:
     """One balance_roller demonstration without cameras (about 10 s) and its state-only LeRobot
     export (about 20 s, mostly lerobot's imports)."""
     pytest.importorskip("lerobot.datasets.lerobot_dataset")
-    return generate_and_export(tmp_path_factory.mktemp("playback"), "balance_roller", 1)
+    return generate_and_export(
+        tmp_path_factory.mktemp("playback"), "balance_roller", 1, environment_state=True
+    )

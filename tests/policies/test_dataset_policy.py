@@ -35,6 +35,10 @@ LINE = re.compile(
     r"(?:; images mean \|error\| (?P<i0>\S+) levels \(t-1: (?P<im>\S+), t\+1: (?P<ip>\S+)\))?"
 )
 
+VECTOR = re.compile(
+    r"max \|(?P<name>[a-z ]+) - frame t\| (?P<e0>\S+) \(t-1: (?P<em>\S+), t\+1: (?P<ep>\S+)\)"
+)
+
 
 @pytest.fixture(scope="module")
 def synthetic(tmp_path_factory):
@@ -125,6 +129,29 @@ def test_a_one_step_shift_is_measured_and_named(synthetic, recorded):
     play(strict, fake_env(0), ep["state"], 12)  # aligned: within the tolerance
 
 
+def test_end_poses_are_compared_with_the_frames_too(synthetic, recorded):
+    ep = recorded[0]
+    assert ep["end poses"].shape == (12, 14)
+    assert "environment state" not in ep  # exported without the objects' poses
+    policy = load_policy(f"lerobot-dataset:{synthetic}")
+    policy.bind(fake_env(0))
+    policy.reset("x")
+    for t in range(12):
+        policy.act({"joint_state": ep["state"][t], "observation.endpose": ep["end poses"][t]})
+    (alignment,) = policy.alignments
+    errors = alignment.vector_error["end poses"]
+    assert errors[0] == 0.0 < errors[-1] and errors[0] < errors[1]
+    assert list(alignment.vector_error) == ["end poses"]
+    assert alignment.to_json()["vector_error"]["end poses"]["0"] == 0.0
+    (match,) = VECTOR.finditer(alignment.text())
+    assert match["name"] == "end poses" and float(match["e0"]) == 0.0
+    # an observation without them is not compared
+    policy.bind(fake_env(1))
+    policy.reset("x")
+    policy.act({"joint_state": recorded[1]["state"][0]})
+    assert policy.alignments[-1].vector_error == {}
+
+
 def test_a_seed_or_task_the_dataset_lacks_names_what_it_has(synthetic):
     policy = load_policy(f"lerobot-dataset:{synthetic}")
     with pytest.raises(ValueError, match=r"no demo_task episode of seed 5; its demo_task seeds"):
@@ -203,6 +230,11 @@ def test_scripts_evaluate_plays_the_export_back_on_its_seed(balance_roller_expor
     (line,) = alignment_lines(out.stderr)
     assert int(line["frames"]) == rollout["steps"]
     assert float(line["s0"]) < 1e-4 < float(line["sm"])  # aligned, and a shift would show
+    # the other inputs of a state-based policy line up too
+    vectors = {m["name"]: m for m in VECTOR.finditer(out.stderr)}
+    assert set(vectors) == {"end poses", "environment state"}
+    for m in vectors.values():
+        assert float(m["e0"]) < 1e-4 < float(m["em"]), m.groupdict()
 
 
 def test_scripts_evaluate_names_the_seeds_the_dataset_has(balance_roller_export, capsys):
