@@ -25,7 +25,8 @@ Inside an episode file (T frames, S stages; PRODUCT.md, Data)::
                                                   episodes generated with noise). ``vector``
                                                   and the per-arm datasets stay the label
     joint_state/vector               (T, A)       measured, same layout
-    endpose/{left,right}_endpose     (T, 7)       TCP xyz + quaternion wxyz, world
+    endpose/{left,right}_endpose     (T, 7)       TCP xyz + quaternion wxyz, world (the
+                                                  sign nearer the arm's home orientation)
     objects/<name>/pose              (T, 7)
     joints/<name>/position           (T,)         a sliding object's joint position, m
                                                   (only scenes with one; optional on read)

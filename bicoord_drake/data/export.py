@@ -14,7 +14,9 @@ pair; the dataset's ``robot_type`` is the embodiment)::
     action                     (A,)   commanded joint targets and gripper openings (the
                                       expert's label: of an episode generated with action
                                       noise, ``joint_action/vector``, not what was executed)
-    observation.endpose        (14,)  left TCP xyz + quaternion wxyz, then right
+    observation.endpose        (14,)  left TCP xyz + quaternion wxyz, then right (each
+                                      quaternion's sign the one nearer its arm's home
+                                      orientation: no jumps between q and -q)
     stage_index                (1,)   int64, the BiCoord stage the frame belongs to
     observation.images.{head,left,right}   videos (H, W, 3) (not with ``images=False``)
     observation.environment_state  (7 K,)  with ``environment_state=True``: the poses (xyz +

@@ -169,7 +169,10 @@ class StationObserver(LeafSystem):
 
     Outputs: ``joint_state`` = [left q (n), left opening, right q (n), right opening] (the
     action's layout);
-    ``left_tcp_pose`` / ``right_tcp_pose`` = xyz + quaternion wxyz in world;
+    ``left_tcp_pose`` / ``right_tcp_pose`` = xyz + quaternion wxyz in world, its sign the one
+    nearer the arm's TCP orientation at home (:func:`same_hemisphere`: Drake's w >= 0 would
+    flip it wherever w crosses 0, as it does for a TCP pointing down, so a policy's end-pose
+    input would jump between q and -q for an unchanged orientation);
     ``object_poses`` = 7 numbers per scene object, in scene order.
     """
 
@@ -192,6 +195,7 @@ class StationObserver(LeafSystem):
             s: plant.GetBodyByName(gripper_name, i).index() for s, i in arms.items()
         }
         self._X_GT = RigidTransform([embodiment.arm.gripper.tcp_x, 0.0, 0.0])
+        self._home_quaternion = self._home_tcp_quaternions(embodiment)
         self._object_bodies = [b.index() for b in object_bodies]
         layout = action_layout(embodiment)
         self._n = layout.arm_joints
@@ -214,9 +218,25 @@ class StationObserver(LeafSystem):
             out.append(float(self._gripper.opening(q[self._n])))
         output.SetFromVector(np.asarray(out))
 
+    def _home_tcp_quaternions(self, embodiment: Embodiment) -> dict[str, np.ndarray]:
+        """Each arm's TCP orientation (wxyz) with its joints at home."""
+        plant = self._plant
+        context = plant.CreateDefaultContext()
+        n = len(embodiment.home)
+        out = {}
+        for side, instance in self._arms.items():
+            q = plant.GetPositions(context, instance)
+            q[:n] = embodiment.home_of(side)
+            plant.SetPositions(context, instance, q)
+            X_WG = plant.EvalBodyPoseInWorld(context, plant.get_body(self._gripper_body[side]))
+            out[side] = (X_WG @ self._X_GT).rotation().ToQuaternion().wxyz()
+        return out
+
     def _tcp(self, context: Context, output: BasicVector, side: str) -> None:
         X_WG = self._poses.Eval(context)[self._gripper_body[side]]
-        output.SetFromVector(pose_to_vector(X_WG @ self._X_GT))
+        pose = pose_to_vector(X_WG @ self._X_GT)
+        pose[3:] = same_hemisphere(pose[3:], self._home_quaternion[side])
+        output.SetFromVector(pose)
 
     def _objects(self, context: Context, output: BasicVector) -> None:
         poses = self._poses.Eval(context)
@@ -224,6 +244,13 @@ class StationObserver(LeafSystem):
             output.SetFromVector(
                 np.concatenate([pose_to_vector(poses[b]) for b in self._object_bodies])
             )
+
+
+def same_hemisphere(quaternion: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """`quaternion` or its negative (the same rotation), whichever is nearer `reference`: a
+    continuous choice for every orientation less than 180 degrees from the reference."""
+    q = np.asarray(quaternion, dtype=float)
+    return -q if float(q @ np.asarray(reference, dtype=float)) < 0.0 else q
 
 
 def pose_to_vector(X: RigidTransform) -> np.ndarray:

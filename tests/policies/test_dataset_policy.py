@@ -235,6 +235,11 @@ def test_scripts_evaluate_plays_the_export_back_on_its_seed(balance_roller_expor
     assert set(vectors) == {"end poses", "environment state"}
     for m in vectors.values():
         assert float(m["e0"]) < 1e-4 < float(m["em"]), m.groupdict()
+    # the end poses' quaternions never jump to -q (seed 0 had 12 jumps with Drake's w >= 0)
+    poses = load_policy(f"lerobot-dataset:{ex.lerobot}").frames(ex.task, ex.seeds[0])["end poses"]
+    for arm in (0, 1):
+        q = poses[:, 7 * arm + 3 : 7 * arm + 7]
+        assert np.min(np.sum(q[1:] * q[:-1], axis=1)) > 0.9
 
 
 def test_scripts_evaluate_names_the_seeds_the_dataset_has(balance_roller_export, capsys):
