@@ -53,8 +53,9 @@ from typing import Any
 
 import numpy as np
 
-from bicoord_drake.data.environment_state import ENVIRONMENT_STATE, environment_state
+from bicoord_drake.data.environment_state import ENVIRONMENT_STATE
 from bicoord_drake.policies import PolicyLoadError, env_action_size, spec_options
+from bicoord_drake.policies.lerobot_policy import ENDPOSE, observation_vector
 
 PREFIX = "lerobot-dataset:"
 #: The exporter's per-episode metadata (source file, task, seed, stage rows).
@@ -71,7 +72,7 @@ CAMERAS = {
 SHIFTS = (-1, 0, 1)
 #: The other observation vectors compared when the dataset has them (what a state-based policy
 #: takes besides the joints): their names in the alignment and their dataset features.
-VECTORS = {"end poses": "observation.endpose", "environment state": ENVIRONMENT_STATE}
+VECTORS = {"end poses": ENDPOSE, "environment state": ENVIRONMENT_STATE}
 
 
 def _flag(value: str) -> bool:
@@ -517,7 +518,10 @@ class DatasetPlaybackPolicy:
                     f"{self.state_tolerance:g}{hint}"
                 )
         for name, frames in columns["vectors"].items():
-            self._compare_vector(name, _live_vector(obs, name), frames, t, alignment)
+            live = observation_vector(obs, VECTORS[name])
+            if live is not None:
+                live = np.asarray(live, dtype=float).reshape(-1)
+            self._compare_vector(name, live, frames, t, alignment)
         if self.images:
             self._compare_images(obs, t, alignment)
 
@@ -574,22 +578,6 @@ class DatasetPlaybackPolicy:
             alignment.image_error[shift] = mean + (error - mean) / n
             self._image_counts[shift] = n
         alignment.images_compared += 1
-
-
-def _live_vector(obs: dict[str, Any], name: str) -> np.ndarray | None:
-    """The observation's value of the :data:`VECTORS` entry `name`, as a policy gets it: keyed
-    by its LeRobot feature (the Gymnasium environment) or computed from
-    :mod:`bicoord_drake.env`'s ``left_endpose``/``right_endpose`` and ``object_poses`` (None if
-    the observation has neither)."""
-    key = VECTORS[name]
-    if key in obs:
-        return np.asarray(obs[key], dtype=float).reshape(-1)
-    if name == "end poses" and "left_endpose" in obs and "right_endpose" in obs:
-        return np.concatenate([obs["left_endpose"], obs["right_endpose"]]).astype(float)
-    poses = obs.get("object_poses")
-    if name == "environment state" and poses:
-        return np.asarray(environment_state(poses, tuple(poses)), dtype=float)
-    return None
 
 
 def load_dataset_policy(spec: str, **kwargs: Any) -> DatasetPlaybackPolicy:

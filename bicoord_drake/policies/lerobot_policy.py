@@ -494,17 +494,37 @@ class LeRobotPolicy:
         out = {k: v for k, v in obs.items() if k in OFFERED}
         poses = obs.get("object_poses")
         if ENVIRONMENT_STATE in self.inputs and ENVIRONMENT_STATE not in out and poses:
-            objects = tuple(poses)
-            self.check_state_objects(objects)
-            out[ENVIRONMENT_STATE] = environment_state(poses, objects)
-        if STATE not in out and "joint_state" in obs:
-            out[STATE] = obs["joint_state"]
-        if ENDPOSE not in out and "left_endpose" in obs and "right_endpose" in obs:
-            out[ENDPOSE] = np.concatenate([obs["left_endpose"], obs["right_endpose"]])
+            self.check_state_objects(tuple(poses))
+        for key in (
+            STATE,
+            ENDPOSE,
+            *([ENVIRONMENT_STATE] if ENVIRONMENT_STATE in self.inputs else []),
+        ):
+            value = observation_vector(obs, key)
+            if key not in out and value is not None:
+                out[key] = value
         for camera, key in IMAGE_FEATURES.items():
             if key not in out and camera in obs:
                 out[key] = obs[camera]
         return out
+
+
+def observation_vector(obs: dict[str, Any], key: str) -> Any:
+    """The vector feature `key` (:data:`STATE`, :data:`ENDPOSE` or ``ENVIRONMENT_STATE``) of
+    an observation of either environment, as a policy gets it: keyed by the feature (the
+    Gymnasium environment) or made from :mod:`bicoord_drake.env`'s ``joint_state``,
+    ``left_endpose``/``right_endpose`` or ``object_poses`` (the environment state of its
+    objects in its order); None if the observation has neither."""
+    if key in obs:
+        return obs[key]
+    if key == STATE:
+        return obs.get("joint_state")
+    if key == ENDPOSE and "left_endpose" in obs and "right_endpose" in obs:
+        return np.concatenate([obs["left_endpose"], obs["right_endpose"]])
+    poses = obs.get("object_poses")
+    if key == ENVIRONMENT_STATE and poses:
+        return environment_state(poses, tuple(poses))
+    return None
 
 
 def _image_tensor(image: Any, shape: tuple[int, ...], torch: Any) -> Any:
