@@ -125,6 +125,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--batch-size", type=int, default=8, help="lerobot-train --batch_size")
     parser.add_argument("--train-seed", type=int, default=1000, help="lerobot-train --seed")
     parser.add_argument(
+        "--policy-args",
+        default="",
+        help="more lerobot-train arguments after REPRODUCE_ARGS (a later one wins), e.g. "
+        "'--policy.use_vae=false --policy.dropout=0'; they name the checkpoint",
+    )
+    parser.add_argument(
         "--work",
         type=Path,
         default=DEFAULT_WORK,
@@ -146,6 +152,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
+def extra_policy_args(args: argparse.Namespace) -> str:
+    """``--policy-args`` (none when the caller's namespace has no such option)."""
+    return str(getattr(args, "policy_args", "") or "").strip()
+
+
 def baselines_args(args: argparse.Namespace) -> argparse.Namespace:
     """The settings in the form benchmarks/baselines.py's command and naming functions take."""
     return argparse.Namespace(
@@ -155,7 +166,7 @@ def baselines_args(args: argparse.Namespace) -> argparse.Namespace:
         steps=args.steps,
         batch_size=args.batch_size,
         train_seed=args.train_seed,
-        train_args={POLICY: REPRODUCE_ARGS},
+        train_args={POLICY: " ".join(filter(None, (REPRODUCE_ARGS, extra_policy_args(args))))},
         eval_seed=None,
         eval_episodes=args.demos,
     )
@@ -186,7 +197,7 @@ def task_paths(task: str, args: argparse.Namespace) -> TaskPaths:
         demos=EpisodeLayout(data, task, "default").root,
         dataset=here / f"dataset_state_{args.demos}",
         checkpoint=checkpoint,
-        eval=here / "eval",
+        eval=here / f"eval_{checkpoint.name}",
         logs=here / "logs",
         result=here / f"result_{checkpoint.name}.json",
     )
@@ -475,7 +486,7 @@ def run_task(task: str, args: argparse.Namespace, run_command: str) -> dict[str,
         "steps": args.steps,
         "batch_size": args.batch_size,
         "train_seed": args.train_seed,
-        "train_args": REPRODUCE_ARGS,
+        "train_args": baselines_args(args).train_args[POLICY],
         **scores,
         "final_loss": loss,
         "open_loop": fit,

@@ -27,7 +27,9 @@ from bicoord_drake.planning.timing import (
     TimedTrajectory,
     _calculate,
     _check_dim,
+    _Concat,
     _Linear,
+    _rounded_up,
     _RuckigSegment,
     _steps_at_least,
     _Timeline,
@@ -70,7 +72,7 @@ class ThrowPlan:
 
     At sample ``release_index`` (time ``release_time = release_index * dt``) the arm is exactly at
     ``q_release`` with velocity ``qd_release``; it moves at that constant velocity for
-    ``coast`` = (before, after) control periods around the release, so the first-order hold
+    ``coast`` = (before, after) periods of its grid around the release, so the first-order hold
     between actions reproduces the release velocity exactly. Command the gripper opening in
     action ``release_index``: the station's hold ramps the jaw open during the following period,
     while (with the default coast of (1, 1)) the arm target still moves at exactly ``qd_release``.
@@ -98,6 +100,7 @@ def throw_release(
     jacobian: np.ndarray | Callable[[np.ndarray], np.ndarray] | None = None,
     release_at: float | None = None,
     coast: tuple[int, int] = (1, 1),
+    grid: float | None = None,
 ) -> ThrowPlan:
     """Plan a throw for one arm: reach `q_release` with a non-zero velocity on a control step.
 
@@ -107,6 +110,11 @@ def throw_release(
     coasts through the release at constant velocity; a velocity-interface Ruckig brakes it to rest.
     `release_at` (s, rounded up to the grid) asks for a later release. Every sample is checked
     against `limits` (position limits included): ``PlanningError('throw_*' / 'timing_limits')``.
+
+    `grid` (s, default `dt`) is the period the profile is timed on and `coast` counts. With
+    :data:`~bicoord_drake.planning.timing.SEGMENT_QUANTUM` the throw is the same continuous
+    motion at every control rate: it starts less than one control period late (at rest), so that
+    the release instant falls on a control step, and is sampled every `dt`.
     """
     q0 = np.asarray(q_start, dtype=float)
     q_rel = np.asarray(q_release, dtype=float)
@@ -126,24 +134,27 @@ def throw_release(
     before, after = coast
     if before < 0 or after < 0:
         raise ValueError("coast steps must be >= 0")
-    q_coast0 = q_rel - before * dt * v
-    q_coast1 = q_rel + after * dt * v
+    step = dt if grid is None else float(grid)
+    if step <= 0:
+        raise ValueError(f"grid must be > 0 s, got {grid}")
+    q_coast0 = q_rel - before * step * v
+    q_coast1 = q_rel + after * step * v
 
-    otg = Ruckig(n, dt)
+    otg = Ruckig(n, step)
     inp = _inputs(n, limits, q0, np.zeros(n))
     inp.target_position, inp.target_velocity = list(q_coast0), list(v)
     inp.target_acceleration = [0.0] * n
     inp.synchronization = Synchronization.Time
     if release_at is not None:
-        steps = _steps_at_least(release_at, dt) - before
+        steps = _steps_at_least(release_at, step) - before
         if steps <= 0:
             raise PlanningError("timing_infeasible", f"release at {release_at} s is too early")
-        inp.minimum_duration = steps * dt
+        inp.minimum_duration = steps * step
     approach = _calculate(otg, inp, n, "throw approach")
     if release_at is not None and approach.duration > inp.minimum_duration + _GRID_TOL:
         raise PlanningError(
             "timing_infeasible",
-            f"the release needs {approach.duration + before * dt:.3f} s, asked for {release_at}",
+            f"the release needs {approach.duration + before * step:.3f} s, asked for {release_at}",
         )
 
     brake_inp = _inputs(n, limits, q_coast1, v)
@@ -154,10 +165,19 @@ def throw_release(
 
     pieces: list[_Timeline] = [_RuckigSegment(approach, stretchable=False)]
     if before + after:
-        pieces.append(_Linear(q_coast0, v, (before + after) * dt))
+        pieces.append(_Linear(q_coast0, v, (before + after) * step))
     pieces.append(_RuckigSegment(brake, stretchable=False))
-    trajectory = concatenate([TimedTrajectory._sample(p, dt) for p in pieces])
-    release_index = int(round(approach.duration / dt)) + before
+    if abs(step - dt) < _GRID_TOL:
+        trajectory = concatenate([TimedTrajectory._sample(p, dt) for p in pieces])
+        release_index = int(round(approach.duration / dt)) + before
+    else:
+        # Start late (at rest) by less than a period: the release instant on a control step.
+        t_release = approach.duration + before * step
+        release_index = _steps_at_least(t_release, dt)
+        lead = release_index * dt - t_release
+        if lead > _GRID_TOL:
+            pieces.insert(0, _Linear(q0, np.zeros(n), lead))
+        trajectory = TimedTrajectory._sample(_rounded_up(_Concat(pieces), dt), dt)
     trajectory.q[release_index] = q_rel  # exactly on the release state
     trajectory.qd[release_index] = v
     # Ruckig's position_extrema are unreliable with time synchronization + discrete durations

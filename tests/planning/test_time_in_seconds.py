@@ -131,3 +131,65 @@ def test_env_gap_measures_how_close_a_planned_arm_comes_to_the_table(models):
     q_low = sk.solve_tcp(ctx, "right", TcpTarget(low), env_clearance=0.0)
     gap = sk.env_gap(ctx, ctx.q, "right", np.vstack([home, q_low]))
     assert gap < ctx.env_clearance  # the hand at the table: closer than the skills' clearance
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_throw_is_the_same_motion_at_every_rate(seed):
+    """Timed on the 15 Hz quantum, a throw reaches its release state on a control step at 10,
+    30 and 50 Hz, at the 15 Hz release instant or less than one period later (it starts late,
+    at rest), and coasts at the release velocity a whole quantum before it (at 10 Hz the coast
+    used to be a 0.1 s period, at 50 Hz 0.08 s: a windup farther back than at 15 Hz)."""
+    from bicoord_drake.models.viperx import aloha_viperx
+    from bicoord_drake.planning.throwing import throw_release
+    from bicoord_drake.planning.timing import SEGMENT_QUANTUM, JointLimits
+
+    limits = JointLimits.from_embodiment(aloha_viperx(), arms=1)
+    rng = np.random.default_rng(50 + seed)
+    mid = (limits.lower + limits.upper) / 2
+    q_rel = mid + rng.normal(0, 0.05, limits.n)
+    v = rng.normal(0, 0.6, limits.n)
+    q_wind = q_rel - 0.4 * v
+    plans = {
+        hz: throw_release(
+            q_wind, q_rel, limits, 1.0 / hz, qd_release=v, coast=(1, 3), grid=SEGMENT_QUANTUM
+        )
+        for hz in (10, 15, 30, 50)
+    }
+    reference = plans[15]
+    for hz, plan in plans.items():
+        dt = 1.0 / hz
+        traj, i = plan.trajectory, plan.release_index
+        assert np.allclose(traj.q[i], q_rel, atol=1e-9) and np.allclose(traj.qd[i], v, atol=1e-9)
+        late = plan.release_time - reference.release_time
+        assert -1e-9 <= late < dt - 1e-9
+        # the whole quantum before the release is the coast: the hold reproduces v
+        t = plan.release_time - SEGMENT_QUANTUM
+        q_before, qd_before, _ = traj.at(t)
+        assert np.allclose(qd_before, v, atol=1e-9)
+        assert np.allclose(q_before, q_rel - SEGMENT_QUANTUM * v, atol=1e-9)
+        # late by less than a period, then rounded up to one
+        assert 0 <= traj.duration - reference.trajectory.duration < 2 * dt
+        assert np.allclose(traj.qd[-1], 0.0, atol=1e-9)
+        traj.check_limits(limits)
+    assert plans[30].release_time == pytest.approx(reference.release_time, abs=1e-9)
+
+
+def test_the_release_opens_the_fingers_the_same_way_in_time_at_every_rate():
+    """The thrower's opening: light grip up to the release sample, the release clearance one
+    quantum later (at 15 Hz the next sample, as before), then fully open at the fingers' rate;
+    at 50 Hz the same ramp sampled every 20 ms."""
+    from bicoord_drake.planning.skills.toss import release_openings
+    from bicoord_drake.planning.timing import SEGMENT_QUANTUM
+
+    soft, gap, rate = 0.2, 0.3, 1.5
+    at_15 = release_openings(20, 5, soft, gap, rate, SEGMENT_QUANTUM)
+    assert np.all(at_15[:6] == soft) and at_15[6] == gap
+    assert np.allclose(np.diff(at_15[6:]), np.minimum(rate * SEGMENT_QUANTUM, 1.0 - at_15[6:-1]))
+    for hz in (10, 30, 50):
+        dt = 1.0 / hz
+        openings = release_openings(int(3 * hz), 7, soft, gap, rate, dt)
+        times = (np.arange(len(openings)) - 7) * dt
+        expected = np.interp(times, (np.arange(20) - 5) * SEGMENT_QUANTUM, at_15)
+        inside = times <= 6 * SEGMENT_QUANTUM  # before the cap at 1 (8 quanta)
+        assert np.allclose(openings[inside], expected[inside], atol=1e-12)
+        assert openings.max() == 1.0

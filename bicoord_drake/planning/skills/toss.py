@@ -25,7 +25,7 @@ from bicoord_drake.planning.grasps import arm_base, naturalness, turned_onto
 from bicoord_drake.planning.ik import TcpTarget
 from bicoord_drake.planning.motion import plan_path
 from bicoord_drake.planning.skills.arm import grip, move, solve_tcp
-from bicoord_drake.planning.skills.core import Motion, SkillContext
+from bicoord_drake.planning.skills.core import Motion, SkillContext, periods
 from bicoord_drake.planning.skills.shapes import half_extent
 from bicoord_drake.planning.throwing import (
     ThrowPlan,
@@ -34,7 +34,7 @@ from bicoord_drake.planning.throwing import (
     throw_and_catch,
     throw_release,
 )
-from bicoord_drake.planning.timing import GRAVITY, JointLimits, time_path
+from bicoord_drake.planning.timing import GRAVITY, SEGMENT_QUANTUM, JointLimits, time_path
 
 #: Throws: squeeze (N) kept on the object from the windup to the release. A light grip leaves
 #: almost no elastic energy in the pads, so opening does not kick the object sideways.
@@ -199,14 +199,10 @@ def _toss(
         )
         plan = throw_and_catch(throw, c_traj, flight, thrower, **kwargs)
     r = throw.release_index
-    n = plan.trajectory.num_steps + 1
-    opening = np.full(n, soft)
     half = half_extent(shape, held.X_GO.rotation(), [0, 1, 0])
-    opening[r + 1] = float(np.clip(gripper.opening(half + RELEASE_GAP), 0, 1))
-    # then fully open, as fast as the fingers move (the object has left them)
-    per_step = gripper.opening_rate * ctx.dt
-    ramp = opening[r + 1] + per_step * np.arange(1, n - r - 1)
-    opening[r + 2 :] = np.minimum(ramp, 1.0)
+    gap = float(np.clip(gripper.opening(half + RELEASE_GAP), 0, 1))
+    num_samples = plan.trajectory.num_steps + 1
+    opening = release_openings(num_samples, r, soft, gap, gripper.opening_rate, ctx.dt)
     throw_motion = ctx.motion_of(plan.trajectory, "throw and catch", 0.0)
     throw_motion.openings[:, SIDES.index(thrower)] = opening
     throw_motion.openings[:, SIDES.index(catcher)] = ctx.opening[catcher]
@@ -243,6 +239,21 @@ def _toss(
         bowl_pose=RigidTransform(R_WB, p_bowl),
     )
     return motion
+
+
+def release_openings(
+    num_samples: int, release: int, soft: float, gap: float, rate: float, dt: float
+) -> np.ndarray:
+    """The thrower's opening per sample: the light grip `soft` up to sample `release`, then
+    a linear ramp to the release clearance `gap` over one :data:`SEGMENT_QUANTUM` (at 15 Hz:
+    the next sample), then fully open at `rate` (opening units per second; the object has left
+    the fingers). The same opening in time at every control period `dt`, so RELEASE_DELAY
+    (measured at 15 Hz) holds at every rate."""
+    steps = np.arange(num_samples) - release
+    quanta = SEGMENT_QUANTUM / dt
+    ramp = soft + (gap - soft) * np.clip(steps / quanta, 0.0, 1.0)
+    opened = gap + rate * dt * (steps - quanta)
+    return np.minimum(np.where(steps >= quanta, opened, ramp), 1.0)
 
 
 def _catch_pose(
@@ -342,12 +353,21 @@ def _throw(
         a = float(np.min(limits.acceleration / np.maximum(np.abs(qd), 1e-9)))
         j = float(np.min(limits.jerk / np.maximum(np.abs(qd), 1e-9)))
         ramp = 0.5 * (1 / a + a / j) if a * a / j <= 1 else np.sqrt(1 / j)
-        coast = (ctx.steps(THROW_COAST[0]), ctx.steps(coast_after))
-        q_wind = q_sample - (coast[0] * ctx.dt + 1.3 * ramp) * qd
+        # Timed on the segment quantum: the same throw at every control rate.
+        coast = (periods(THROW_COAST[0], SEGMENT_QUANTUM), periods(coast_after, SEGMENT_QUANTUM))
+        q_wind = q_sample - (coast[0] * SEGMENT_QUANTUM + 1.3 * ramp) * qd
         try:
             if not np.all((q_wind >= limits.lower) & (q_wind <= limits.upper)):
                 raise PlanningError("throw_joint_limits", "the windup is out of range")
-            plan = throw_release(q_wind, q_sample, limits, ctx.dt, qd_release=qd, coast=coast)
+            plan = throw_release(
+                q_wind,
+                q_sample,
+                limits,
+                ctx.dt,
+                qd_release=qd,
+                coast=coast,
+                grid=SEGMENT_QUANTUM,
+            )
             with ctx.model.padded(0.0, 0.0):
                 if not all(
                     ctx.model.collision_free(ctx.with_arm(thrower, q))
