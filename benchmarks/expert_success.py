@@ -267,11 +267,13 @@ def run_task(
     randomize: bool = False,
     replay: bool = False,
     embodiment: str | None = None,
+    action_noise: float = 0.0,
 ) -> TaskResult:
     """Every seed of `seeds` through generate() (no rendering, no video) in `work_dir`; with
     `randomize`, on the randomized scenes (textures, table height, clutter); with `replay`,
     then the replay check of the kept episodes (:func:`replay_check`); `embodiment`: the robot
-    (default: the default robot)."""
+    (default: the default robot); `action_noise` (rad): the expert's actions executed with
+    that noise (generate --action-noise, DART)."""
     from bicoord_drake.data.episode import EpisodeLayout
     from bicoord_drake.runner.generate import GenerateConfig, generate
 
@@ -286,6 +288,7 @@ def run_task(
         workers=workers,
         randomize=randomize,
         **({} if embodiment is None else {"embodiment": embodiment}),
+        **({"action_noise": action_noise} if action_noise else {}),
     )
     commit, dirty = git_state()
     resumed = EpisodeLayout(work_dir, task, config.config_name).manifest.exists()
@@ -303,7 +306,7 @@ def run_task(
     end_commit, end_dirty = git_state()  # the tree may change while the seeds run
     dirty = dirty or end_dirty or code_changed(commit, end_commit)
     return TaskResult(
-        task=section_name(task, randomize, embodiment),
+        task=section_name(task, randomize, embodiment, action_noise),
         seeds=seeds,
         kept=summary.kept,
         tried=summary.tried,
@@ -322,10 +325,14 @@ def run_task(
     )
 
 
-def section_name(task: str, randomize: bool = False, embodiment: str | None = None) -> str:
-    """The section title: '<task>', '<task> (randomized)', '<task> (franka_pair)', ..."""
+def section_name(
+    task: str, randomize: bool = False, embodiment: str | None = None, action_noise: float = 0.0
+) -> str:
+    """The section title: '<task>', '<task> (randomized)', '<task> (franka_pair)',
+    '<task> (action noise 0.01 rad)', ..."""
     notes = [embodiment] if embodiment else []
     notes += ["randomized"] if randomize else []
+    notes += [f"action noise {action_noise:g} rad"] if action_noise else []
     return f"{task} ({', '.join(notes)})" if notes else task
 
 
@@ -365,6 +372,13 @@ def _measure(argv: list[str] | None) -> int:
         "'<task> (<embodiment>)'",
     )
     parser.add_argument(
+        "--action-noise",
+        type=float,
+        default=0.0,
+        help="execute the expert's actions with this Gaussian noise (rad, generate "
+        "--action-noise); sections are named '<task> (action noise SIGMA rad)'",
+    )
+    parser.add_argument(
         "--replay",
         action="store_true",
         help="then replay every kept episode and report how many reproduce every stage",
@@ -379,6 +393,9 @@ def _measure(argv: list[str] | None) -> int:
 
     try:
         seeds = parse_seeds(args.seeds)
+        from bicoord_drake.scenario import parse_action_noise
+
+        parse_action_noise(args.action_noise)  # the level's bounds, named
         if not 1 <= args.workers <= 64:
             raise ValueError(f"--workers must be in [1, 64], got {args.workers}")
         from bicoord_drake.tasks import list_tasks
@@ -399,6 +416,7 @@ def _measure(argv: list[str] | None) -> int:
                 args.randomize,
                 args.replay,
                 args.embodiment,
+                args.action_noise,
             )
         else:
             with tempfile.TemporaryDirectory(prefix=f"expert_success_{task}_") as tmp:
@@ -410,6 +428,7 @@ def _measure(argv: list[str] | None) -> int:
                     args.randomize,
                     args.replay,
                     args.embodiment,
+                    args.action_noise,
                 )
         text = args.out.read_text() if args.out.exists() else ""
         write_atomic(args.out, update_markdown(text, {result.task: format_section(result)}))

@@ -96,6 +96,7 @@ def test_cli_refuses_bad_input_before_running_anything(tmp_path):
         (("--tasks", "origami"), "jigsaw"),
         (("--seeds", "5-2"), "empty"),
         (("--workers", "0"), "--workers"),
+        (("--action-noise", "0.5"), "[0, 0.2] rad"),
     ]:
         done = subprocess.run(
             [sys.executable, str(SCRIPT), *args, "--out", str(out)],
@@ -141,6 +142,11 @@ def test_only_package_changes_make_a_measurement_dirty(es, tmp_path):
             ["--embodiment", "franka_pair"],
             "jigsaw (franka_pair)",
             lambda config: config.embodiment == "franka_pair",
+        ),
+        (
+            ["--action-noise", "0.01"],
+            "jigsaw (action noise 0.01 rad)",
+            lambda config: config.action_noise == 0.01,
         ),
     ],
 )
