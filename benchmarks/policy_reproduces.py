@@ -139,6 +139,13 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument(
         "--out", type=Path, default=DEFAULT_OUT, help="the Markdown file whose sections to update"
     )
+    parser.add_argument(
+        "--action-noise",
+        type=float,
+        default=0.0,
+        help="generate the demonstrations with this DART noise (rad, generate --action-noise: "
+        "executed with noise, the expert's actions recorded as labels); the rollouts are clean",
+    )
     parser.add_argument("--force", action="store_true", help="redo every step of every task")
     args = parser.parse_args(argv)
     args.tasks = list(dict.fromkeys(t.strip() for t in args.tasks.split(",") if t.strip()))
@@ -147,9 +154,20 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     for name in ("demos", "steps", "batch_size"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be at least 1")
+    from bicoord_drake.scenario import parse_action_noise
+
+    try:
+        parse_action_noise(args.action_noise)
+    except ValueError as err:
+        parser.error(f"--action-noise: {err}")
     args.work = args.work.resolve()  # the steps run with the checkout as working directory
     args.out = args.out.resolve()
     return args
+
+
+def action_noise(args: argparse.Namespace) -> float:
+    """``--action-noise`` (0 when the caller's namespace has no such option)."""
+    return float(getattr(args, "action_noise", 0.0) or 0.0)
 
 
 def extra_policy_args(args: argparse.Namespace) -> str:
@@ -188,14 +206,18 @@ class TaskPaths:
 def task_paths(task: str, args: argparse.Namespace) -> TaskPaths:
     """The paths of `task`'s steps with `args` (the checkpoint named by its training settings)."""
     from bicoord_drake.data.episode import EpisodeLayout
+    from bicoord_drake.runner.generate import default_config_name
 
     data = args.work / "data"
     here = args.work / task
-    checkpoint = here / baselines.checkpoint_name(POLICY, baselines_args(args))
+    noise = action_noise(args)
+    # Demonstrations executed with noise are other data: their own dataset and checkpoints.
+    tag = f"_noise{noise:g}" if noise else ""
+    checkpoint = here / (baselines.checkpoint_name(POLICY, baselines_args(args)) + tag)
     return TaskPaths(
         data=data,
-        demos=EpisodeLayout(data, task, "default").root,
-        dataset=here / f"dataset_state_{args.demos}",
+        demos=EpisodeLayout(data, task, default_config_name(noisy=bool(noise))).root,
+        dataset=here / f"dataset_state_{args.demos}{tag}",
         checkpoint=checkpoint,
         eval=here / f"eval_{checkpoint.name}",
         logs=here / "logs",
@@ -220,6 +242,7 @@ def generate_command(task: str, args: argparse.Namespace, paths: TaskPaths) -> l
         "1",
         "--out",
         str(paths.data),
+        *(["--action-noise", f"{action_noise(args):g}"] if action_noise(args) else []),
     ]
 
 
@@ -337,34 +360,34 @@ def open_loop_error(checkpoint: Path, dataset: Path) -> dict[str, Any]:
     and still fails drifts off the demonstrated states (or the frames and actions are
     misaligned, which the dataset-playback check excludes)."""
     import numpy as np
-    import pandas as pd
 
+    from bicoord_drake.policies.dataset_policy import STATE, VECTORS, DatasetPlaybackPolicy
     from bicoord_drake.policies.lerobot_policy import LeRobotPolicy
 
-    files = sorted((dataset / "data").glob("*/*.parquet"))
-    if not files:
-        raise ValueError(f"no parquet files under {dataset / 'data'}")
-    frames = pd.concat([pd.read_parquet(f) for f in files])
+    # The export's frames as the dataset playback reads them (the same columns it compares
+    # with a live observation), per episode in frame order.
+    playback = DatasetPlaybackPolicy(dataset)
     policy = LeRobotPolicy(checkpoint, device="cpu")
-    keys = [k for k in policy.inputs if k in frames.columns]
     episodes = []
     try:
-        for index, episode in frames.groupby("episode_index"):
-            episode = episode.sort_values("frame_index")
+        for record in sorted(playback.records, key=lambda r: r.index):
+            columns = playback.frames(record.task, record.seed, record.source)
+            inputs = {
+                STATE: columns["state"],
+                **{key: columns[name] for name, key in VECTORS.items() if name in columns},
+            }
+            keys = [k for k in policy.inputs if k in inputs]
             policy.reset("")
             errors = np.array(
                 [
-                    np.abs(
-                        policy.act({k: np.asarray(row[k], dtype=float) for k in keys})
-                        - np.asarray(row["action"], dtype=float)
-                    )
-                    for _, row in episode.iterrows()
+                    np.abs(policy.act({k: inputs[k][t] for k in keys}) - action)
+                    for t, action in enumerate(columns["action"])
                 ]
             )
             episodes.append(
                 {
-                    "episode": int(index),
-                    "frames": len(episode),
+                    "episode": int(record.index),
+                    "frames": len(errors),
                     "mean": round(float(errors.mean()), 4),
                     "max": round(float(errors.max()), 4),
                 }
@@ -483,6 +506,7 @@ def run_task(task: str, args: argparse.Namespace, run_command: str) -> dict[str,
         "task": task,
         "policy": POLICY,
         "demos": args.demos,
+        "action_noise": action_noise(args),
         "steps": args.steps,
         "batch_size": args.batch_size,
         "train_seed": args.train_seed,
@@ -545,6 +569,14 @@ def format_section(r: dict[str, Any]) -> str:
         "|---|---|",
         f"| training seeds (the exported demonstrations) | {_seeds(r['train_seeds'])} |",
         f"| seeds evaluated (from the report) | {_seeds(r['eval_seeds'])} |",
+        *(
+            [
+                f"| demonstrations executed with action noise (DART) | {r['action_noise']:g} rad "
+                "per joint (labels: the expert's actions) |"
+            ]
+            if r.get("action_noise")
+            else []
+        ),
         f"| policy | ACT (state), {r['demos']} demonstrations, {r['steps']} steps, "
         f"batch {r['batch_size']}, training seed {r['train_seed']} |",
         *(
