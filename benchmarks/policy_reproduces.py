@@ -208,11 +208,12 @@ def task_paths(task: str, args: argparse.Namespace) -> TaskPaths:
     from bicoord_drake.data.episode import EpisodeLayout
     from bicoord_drake.runner.generate import default_config_name
 
-    data = args.work / "data"
     here = args.work / task
     noise = action_noise(args)
-    # Demonstrations executed with noise are other data: their own dataset and checkpoints.
+    # Demonstrations executed with noise are other data: their own generation directory (one
+    # per level: generate refuses another level in the same one), dataset and checkpoints.
     tag = f"_noise{noise:g}" if noise else ""
+    data = args.work / f"data{tag}"
     checkpoint = here / (baselines.checkpoint_name(POLICY, baselines_args(args)) + tag)
     return TaskPaths(
         data=data,
