@@ -147,7 +147,7 @@ def format_section(r: dict) -> str:
     sr = {k: sum(row[k] for row in r["rows"]) for k in ("evaluate", "lerobot_eval")}
     n = len(r["rows"])
     lines = [
-        f"## {r['task']}",
+        f"## {section_name(r['task'], r['batch_size'])}",
         "",
         f"**scripts/evaluate.py {sr['evaluate']}/{n}, lerobot-eval {sr['lerobot_eval']}/{n}: "
         + ("every seed agrees.**" if same else "they differ.**"),
@@ -158,7 +158,7 @@ def format_section(r: dict) -> str:
         f"| lerobot-eval batch size | {r['batch_size']} |",
         f"| wall time | evaluate.py {r['seconds']['evaluate']:.0f} s, lerobot-eval "
         f"{r['seconds']['lerobot_eval']:.0f} s |",
-        f"| commit | `{r['commit']}`{' (dirty)' if r['dirty'] else ''} |",
+        f"| commit | `{r['commit'][:7]}`{' (dirty)' if r['dirty'] else ''} |",
         f"| date (UTC) | {r['date']} |",
         f"| machine | {r['machine']} |",
         "",
@@ -175,6 +175,11 @@ def format_section(r: dict) -> str:
         "```",
     ]
     return "\n".join(lines) + "\n"
+
+
+def section_name(task: str, batch_size: int) -> str:
+    """'<task>' for one environment at a time, '<task> (batch N)' for a vector env of N."""
+    return task if batch_size == 1 else f"{task} (batch {batch_size})"
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -244,7 +249,8 @@ def main(argv: list[str] | None = None) -> int:
     section = format_section(result)
     text = args.out.read_text() if args.out.exists() else PREAMBLE
     expert_success.write_atomic(
-        args.out, expert_success.update_markdown(text, {args.task: section})
+        args.out,
+        expert_success.update_markdown(text, {section_name(args.task, args.batch_size): section}),
     )
     print(section)
     return 0 if all(r["evaluate"] == r["lerobot_eval"] for r in result["rows"]) else 1
