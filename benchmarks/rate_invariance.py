@@ -16,12 +16,13 @@ into a markdown file (temp name, then rename) with the commit, machine and date.
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import os
 import platform
 import subprocess
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -79,6 +80,33 @@ def run_one(task: str, rate: float, seed: int) -> Run:
     q = np.vstack([first, joints])
     share = float(np.max(np.abs(np.diff(q, axis=0)) * rate / limits))
     return Run(task, rate, seed, True, "", len(actions), share, wall)
+
+
+def _child(job: tuple[str, float, int], conn) -> None:
+    conn.send(run_one(*job))
+    conn.close()
+
+
+def run_isolated(job: tuple[str, float, int]) -> Run:
+    """:func:`run_one` in a process of its own: a seed whose process dies (a native crash,
+    such as an abort inside Drake, or the OOM killer) is a failed row with its exit code, and
+    the other seeds go on (a process pool would break for all of them)."""
+    task, rate, seed = job
+    start = time.perf_counter()
+    receive, send = multiprocessing.Pipe(duplex=False)
+    process = multiprocessing.get_context("fork").Process(target=_child, args=(job, send))
+    process.start()
+    send.close()
+    try:
+        run = receive.recv()
+    except EOFError:
+        run = None
+    process.join()
+    if run is None:
+        wall = time.perf_counter() - start
+        why = f"the process died (exit code {process.exitcode}; a native crash prints to stderr)"
+        return Run(task, rate, seed, False, why, 0, float("nan"), wall)
+    return run
 
 
 def _arm_limits(setup) -> np.ndarray:
@@ -160,8 +188,8 @@ def main(argv: list[str] | None = None) -> None:
     jobs = [(t, r, s) for t in tasks for r in rates for s in seeds]
     started = time.time()
     runs: list[Run] = []
-    with ProcessPoolExecutor(max_workers=args.workers) as pool:
-        futures = [pool.submit(run_one, *job) for job in jobs]
+    with ThreadPoolExecutor(max_workers=args.workers) as pool:
+        futures = [pool.submit(run_isolated, job) for job in jobs]
         for i, future in enumerate(futures, 1):
             run = future.result()
             runs.append(run)

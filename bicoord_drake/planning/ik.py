@@ -58,6 +58,9 @@ SNOPT_MAJOR_ITERATIONS = 100
 IPOPT_MAX_ITER = 200
 #: Slack (m) by which the independent collision check trusts the optimiser's distances.
 CHECK_SLACK = 1e-4
+#: The smallest distance bound (m) the IK's clearance constraints use: 1 um, far below any
+#: clearance that matters, but never exactly touching (see ``_add_clearance``).
+MIN_BOUND = 1e-6
 
 
 @dataclass(frozen=True)
@@ -214,8 +217,11 @@ class BimanualIK:
             ("arms", clearance, f"inter-arm clearance {clearance * 100:.1f} cm"),
             ("env", env_clearance, f"environment clearance {env_clearance * 100:.1f} cm"),
         ):
+            # A bound of exactly 0 lets the solver converge onto touching geometry, where
+            # Drake's box-box gradient can abort the process ("Unreachable code" in
+            # BoxBoxGradient: clean_table seed 0's drop, drake 1.51); MIN_BOUND keeps it off.
             c = MinimumDistanceLowerBoundConstraint(
-                m.plant, bound, m.distance_context(kind), None, 0.01
+                m.plant, max(bound, MIN_BOUND), m.distance_context(kind), None, 0.01
             )
             out.append((prog.AddConstraint(c, q), label))
         return out
