@@ -135,7 +135,9 @@ def render(cells: dict[str, dict], tasks: list[str], sigmas: list[float], goal: 
             low = " **<**" if r["tried"] and r["kept"] / r["tried"] < goal else ""
             row.append(f"{r['kept']}/{r['tried']} ({share:.0f} %){low}")
         lines.append(f"| {task} | " + " | ".join(row) + " |")
-    commits = sorted({f"`{r['commit']}`{' (dirty)' if r['dirty'] else ''}" for r in cells.values()})
+    commits = sorted(
+        {f"`{r['commit'][:7]}`{' (dirty)' if r['dirty'] else ''}" for r in cells.values()}
+    )
     best = default_level(cells, tasks, sigmas, goal)
     lines += [
         "",
