@@ -28,16 +28,16 @@ import argparse
 import json
 import shlex
 import shutil
-import subprocess
 import sys
-import time
 from datetime import datetime, timezone
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import expert_success  # noqa: E402  (benchmarks/ is on sys.path when this runs as a script)
+# benchmarks/ is on sys.path when this runs as a script
+import baselines  # noqa: E402
+import expert_success  # noqa: E402
 
 DEFAULT_OUT = ROOT / "benchmarks" / "lerobot_eval_parity.md"
 TITLE = "# lerobot-eval against scripts/evaluate.py, seed for seed"
@@ -118,8 +118,13 @@ def lerobot_eval_command(
         f"--eval.batch_size={min(args.batch_size, count)}",
         f"--policy.path={pretrained}",
         "--policy.device=cpu",
-        f"--output_dir={args.work / f'lerobot_eval_{first}_{count}'}",
+        f"--output_dir={lerobot_eval_dir(args, first, count)}",
     ]
+
+
+def lerobot_eval_dir(args: argparse.Namespace, first: int, count: int) -> Path:
+    """Where the lerobot-eval run of seeds first..first+count-1 writes (eval_info.json)."""
+    return args.work / f"lerobot_eval_{first}_{count}"
 
 
 def lerobot_successes(info: dict) -> list[bool]:
@@ -128,18 +133,6 @@ def lerobot_successes(info: dict) -> list[bool]:
     if len(tasks) != 1:
         raise ValueError(f"eval_info.json: expected one task, found {len(tasks)}")
     return [bool(s) for s in tasks[0]["metrics"]["successes"]]
-
-
-def run(command: list[str], log: Path) -> tuple[str, float]:
-    """Run `command` from the checkout; stdout, and wall seconds. RuntimeError (its log's
-    tail) when it fails."""
-    log.parent.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
-    done = subprocess.run(command, cwd=ROOT, capture_output=True, text=True)
-    log.write_text(done.stdout + "\n--- stderr ---\n" + done.stderr)
-    if done.returncode != 0:
-        raise RuntimeError(f"{shlex.join(command[:3])} ... failed:\n{done.stderr[-2000:]}")
-    return done.stdout, time.perf_counter() - t0
 
 
 def format_section(r: dict) -> str:
@@ -215,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
     commit, dirty = expert_success.git_state()
     evaluate = evaluate_command(args)
     try:
-        stdout, seconds_evaluate = run(evaluate, args.work / "evaluate.log")
+        stdout, seconds_evaluate = baselines.run(evaluate, args.work / "evaluate.log")
         report = json.loads(stdout)
         ours = {int(r["seed"]): bool(r["success"]) for r in report["rollouts"]}
         seeds = sorted(ours)
@@ -225,9 +218,9 @@ def main(argv: list[str] | None = None) -> int:
         for first, count in seed_blocks(seeds):
             command = lerobot_eval_command(args, args.pretrained, first, count)
             commands.append(shlex.join(command))
-            _, seconds = run(command, args.work / f"lerobot_eval_{first}_{count}.log")
+            out = lerobot_eval_dir(args, first, count)
+            _, seconds = baselines.run(command, out.with_suffix(".log"))
             seconds_lerobot += seconds
-            out = Path(command[-1].split("=", 1)[1])
             successes = lerobot_successes(json.loads((out / "eval_info.json").read_text()))
             theirs.update(zip(range(first, first + count), successes, strict=True))
     except (RuntimeError, ValueError, KeyError) as err:
@@ -243,7 +236,7 @@ def main(argv: list[str] | None = None) -> int:
         "commit": commit,
         "dirty": dirty or end_dirty or expert_success.code_changed(commit, end_commit),
         "date": datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M"),
-        "machine": expert_success.machine(),
+        "machine": baselines.machine(),
         "commands": commands,
     }
     section = format_section(result)
