@@ -57,10 +57,10 @@ class Probe(Task):
 
 
 @pytest.fixture
-def probe(monkeypatch, tmp_path):
+def probe(monkeypatch, tmp_path, temporary_tasks):
     """The probe task and a second robot registered for this test, which the probe and jigsaw
     (for its Gymnasium id) declare; a private check cache."""
-    monkeypatch.setitem(registry._TASKS, Probe.name, Probe)
+    temporary_tasks(Probe)
     monkeypatch.setitem(
         EMBODIMENTS, ROBOT, lambda: aloha_viperx().model_copy(update={"name": ROBOT})
     )
@@ -70,7 +70,6 @@ def probe(monkeypatch, tmp_path):
     SEEN.clear()
     Spy.bound.clear()
     yield Probe.name
-    gymnasium.registry.pop(f"bicoord_drake/{Probe.name}-v0", None)  # if a make_env registered it
 
 
 def randomized_unseen(seed: int) -> Scene:
@@ -293,10 +292,9 @@ class SlowProbe(Probe):
 
 
 @pytest.fixture
-def slow_probe(probe, monkeypatch):
-    monkeypatch.setitem(registry._TASKS, SlowProbe.name, SlowProbe)
-    yield SlowProbe.name
-    gymnasium.registry.pop(f"bicoord_drake/{SlowProbe.name}-v0", None)
+def slow_probe(probe, temporary_tasks):
+    temporary_tasks(SlowProbe)
+    return SlowProbe.name
 
 
 def test_the_step_limit_scales_with_the_rate(probe, slow_probe):

@@ -171,22 +171,17 @@ def test_lerobot_finds_the_env_type_and_makes_vectorised_envs(lerobot):
     utils.close_envs(envs)
 
 
-def test_an_early_stop_is_a_terminated_failure_with_its_reason(lerobot, monkeypatch, request):
+def test_an_early_stop_is_a_terminated_failure_with_its_reason(lerobot, temporary_tasks):
     """``--env.early_stop=true``: lerobot-eval's vector env sees the rollout whose task object
     fell off the table terminated (not truncated), unsuccessful, with the reason in
     ``final_info``; off by default, as in make_env."""
     factory, utils = lerobot
     from lerobot.configs.eval import EvalPipelineConfig
 
-    from bicoord_drake.gym_env import env_id
     from bicoord_drake.lerobot_env import BiCoordEnvConfig
-    from bicoord_drake.tasks import registry
     from tests.runner.test_early_stop import LIMIT, Ledge
 
-    monkeypatch.setitem(registry._TASKS, Ledge.name, Ledge)  # a cube falls off the table
-    # make_env registers the temporary task's Gymnasium id: gone with the task, so that the
-    # registry holds only the built-in tasks' ids afterwards (test_gym_env checks it).
-    request.addfinalizer(lambda: gymnasium.registry.pop(env_id(Ledge.name), None))
+    temporary_tasks(Ledge)  # a cube falls off the table
     assert BiCoordEnvConfig(task=Ledge.name).gym_kwargs["early_stop"] is False
     args = ["--env.type=bicoord", f"--env.task={Ledge.name}", "--env.obs_type=state"]
     cfg = _parse(EvalPipelineConfig, [*args, "--env.early_stop=true"]).env

@@ -5,7 +5,6 @@ reasons; ``--no-early-stop`` turns it off."""
 
 import json
 
-import gymnasium
 import numpy as np
 import pytest
 
@@ -18,7 +17,6 @@ from bicoord_drake.runner.rollouts import RolloutResult, rollout
 from bicoord_drake.sim.simulation import PhysicsDivergedError, Simulation
 from bicoord_drake.stages.predicates import lifted
 from bicoord_drake.stages.stage import Stage, WorldState
-from bicoord_drake.tasks import registry
 from bicoord_drake.tasks.base import Task
 from bicoord_drake.tasks.sweep_block import BIN_XY, BRUSH, CUBE, SweepBlock
 
@@ -83,15 +81,10 @@ class LedgeOutsideTheBin(LedgeIntoTheBin):
 
 
 @pytest.fixture(autouse=True)
-def tasks(tmp_path, monkeypatch):
+def tasks(tmp_path, monkeypatch, temporary_tasks):
     """The test tasks registered for this test only; the expert-check cache kept in tmp."""
     monkeypatch.setenv("BICOORD_CACHE", str(tmp_path / "cache"))
-    for cls in (Ledge, LedgeToolDropped, LedgeIntoTheBin, LedgeOutsideTheBin):
-        monkeypatch.setitem(registry._TASKS, cls.name, cls)
-    before = set(gymnasium.registry)
-    yield
-    for env_id in set(gymnasium.registry) - before:  # Gymnasium ids made for them go too
-        del gymnasium.registry[env_id]
+    temporary_tasks(Ledge, LedgeToolDropped, LedgeIntoTheBin, LedgeOutsideTheBin)
 
 
 def config(tmp_path, **kw) -> EvaluateConfig:

@@ -9,7 +9,7 @@ import pytest
 
 from bicoord_drake.data.episode import read_episode, read_manifest
 from bicoord_drake.scenario import load_scenario
-from bicoord_drake.tasks import get_task, registry
+from bicoord_drake.tasks import get_task
 from tests.test_episode_setup import Probe
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -27,8 +27,8 @@ def only_episode(root: Path) -> Path:
     return path
 
 
-def test_an_episode_names_its_own_settings_and_seed(monkeypatch, tmp_path, capsys):
-    monkeypatch.setitem(registry._TASKS, Probe.name, Probe)
+def test_an_episode_names_its_own_settings_and_seed(tmp_path, capsys, temporary_tasks):
+    temporary_tasks(Probe)
     settings = ("--fps", "10", "--randomize", "--split", "unseen", "--set", "station.kp_scale=2")
     assert generate("--task", Probe.name, "--seed", "7", "--episodes", "1", "--out",
                     str(tmp_path / "a"), *settings) == 0  # fmt: skip
