@@ -6,6 +6,7 @@
     python benchmarks/expert_success.py --tasks jigsaw --randomize   # section "jigsaw (randomized)"
     python benchmarks/expert_success.py --tasks jigsaw --replay      # also the replay check
     python benchmarks/expert_success.py --tasks cook --data /tmp/es  # keep the episodes there
+    python benchmarks/expert_success.py --tasks jigsaw --disturb drop --replay  # recoveries
 
 For each task, runs the library's ``generate()`` without rendering on every seed of the range
 (into a temporary directory, removed afterwards, or with ``--data DIR`` into ``DIR/<task>``,
@@ -268,12 +269,14 @@ def run_task(
     replay: bool = False,
     embodiment: str | None = None,
     action_noise: float = 0.0,
+    disturb: str = "",
 ) -> TaskResult:
     """Every seed of `seeds` through generate() (no rendering, no video) in `work_dir`; with
     `randomize`, on the randomized scenes (textures, table height, clutter); with `replay`,
     then the replay check of the kept episodes (:func:`replay_check`); `embodiment`: the robot
     (default: the default robot); `action_noise` (rad): the expert's actions executed with
-    that noise (generate --action-noise, DART)."""
+    that noise (generate --action-noise, DART); `disturb`: disturbance kinds (generate
+    --disturb), each kept episode one the expert recovered in."""
     from bicoord_drake.data.episode import EpisodeLayout
     from bicoord_drake.runner.generate import GenerateConfig, generate
 
@@ -289,6 +292,7 @@ def run_task(
         randomize=randomize,
         **({} if embodiment is None else {"embodiment": embodiment}),
         **({"action_noise": action_noise} if action_noise else {}),
+        **({"disturb": disturb} if disturb else {}),
     )
     commit, dirty = git_state()
     resumed = EpisodeLayout(work_dir, task, config.config_name).manifest.exists()
@@ -306,7 +310,7 @@ def run_task(
     end_commit, end_dirty = git_state()  # the tree may change while the seeds run
     dirty = dirty or end_dirty or code_changed(commit, end_commit)
     return TaskResult(
-        task=section_name(task, randomize, embodiment, action_noise),
+        task=section_name(task, randomize, embodiment, action_noise, disturb),
         seeds=seeds,
         kept=summary.kept,
         tried=summary.tried,
@@ -326,13 +330,18 @@ def run_task(
 
 
 def section_name(
-    task: str, randomize: bool = False, embodiment: str | None = None, action_noise: float = 0.0
+    task: str,
+    randomize: bool = False,
+    embodiment: str | None = None,
+    action_noise: float = 0.0,
+    disturb: str = "",
 ) -> str:
     """The section title: '<task>', '<task> (randomized)', '<task> (franka_pair)',
-    '<task> (action noise 0.01 rad)', ..."""
+    '<task> (action noise 0.01 rad)', '<task> (disturbed: drop)', ..."""
     notes = [embodiment] if embodiment else []
     notes += ["randomized"] if randomize else []
     notes += [f"action noise {action_noise:g} rad"] if action_noise else []
+    notes += [f"disturbed: {disturb}"] if disturb else []
     return f"{task} ({', '.join(notes)})" if notes else task
 
 
@@ -379,6 +388,12 @@ def _measure(argv: list[str] | None) -> int:
         "--action-noise); sections are named '<task> (action noise SIGMA rad)'",
     )
     parser.add_argument(
+        "--disturb",
+        default="",
+        help="disturb each episode (generate --disturb KIND[,KIND]: push, drop, knock); "
+        "sections are named '<task> (disturbed: KINDS)'",
+    )
+    parser.add_argument(
         "--replay",
         action="store_true",
         help="then replay every kept episode and report how many reproduce every stage",
@@ -396,6 +411,9 @@ def _measure(argv: list[str] | None) -> int:
         from bicoord_drake.scenario import parse_action_noise
 
         parse_action_noise(args.action_noise)  # the level's bounds, named
+        from bicoord_drake.sim.disturbances import parse_disturb
+
+        args.disturb = ",".join(parse_disturb(args.disturb))  # unknown kinds, named
         if not 1 <= args.workers <= 64:
             raise ValueError(f"--workers must be in [1, 64], got {args.workers}")
         from bicoord_drake.tasks import list_tasks
@@ -417,6 +435,7 @@ def _measure(argv: list[str] | None) -> int:
                 args.replay,
                 args.embodiment,
                 args.action_noise,
+                args.disturb,
             )
         else:
             with tempfile.TemporaryDirectory(prefix=f"expert_success_{task}_") as tmp:
@@ -429,6 +448,7 @@ def _measure(argv: list[str] | None) -> int:
                     args.replay,
                     args.embodiment,
                     args.action_noise,
+                    args.disturb,
                 )
         text = args.out.read_text() if args.out.exists() else ""
         write_atomic(args.out, update_markdown(text, {result.task: format_section(result)}))

@@ -559,6 +559,9 @@ def _shape_grasps(X_WO, shape, gripper, base, params) -> list[Grasp]:
         return cylinder_grasps(X_WO, shape, gripper, base=base, params=params)
     if isinstance(shape, SphereShape):
         return sphere_grasps(X_WO, shape, gripper, base=base, params=params)
+    if not all(hasattr(shape, a) for a in ("height", "radius", "base_radius")):
+        # e.g. a pen (its task passes grasps of its own): no generated grasp, a typed failure
+        raise PlanningError("no_grasp", f"no grasps are generated for a {shape.kind} shape")
     return bowl_rim_grasps(X_WO, shape, gripper, base=base, params=params)
 
 

@@ -351,8 +351,8 @@ def run_expert(
     recorder = run.recorder
     recovery = []
     for d in schedule or ():
-        end = min((b for b in run.reads if b >= d.end), default=len(recorder))
-        recovery.append(recovery_row(d, min(end, len(recorder))))
+        end = recovery_end(d, run.reads, run.recovered, len(recorder))
+        recovery.append(recovery_row(d, end))
     if schedule:
         recorder.disturbances = disturbance_records(schedule)
         recorder.recovery_rows = recovery
@@ -370,6 +370,16 @@ def run_expert(
         disturbances=list(schedule or ()),
         recovery=recovery,
     )
+
+
+def recovery_end(d: Disturbance, reads: set[int], recovered: set[int], frames: int) -> int:
+    """The frame a recovery from `d` ends at: for a drop, the first step after it at which
+    the expert finished picking up (and re-placing) what fell, if it had to; otherwise, and
+    for pushes and knocks, the first step after it at which the expert read the measured
+    world to plan on (`frames`, the episode's length, at most)."""
+    done = [b for b in recovered if b >= d.end] if d.kind == "drop" else []
+    end = min(done or [b for b in reads if b >= d.end], default=frames)
+    return min(end, frames)
 
 
 def _verified(run: _Simulated) -> tuple[str | None, list]:
@@ -434,9 +444,13 @@ class _WatchedView(WorldView):
     """The expert's world view, noting each step at which the expert reads the measured world
     (its plan boundaries: :func:`~bicoord_drake.tasks.base.follow` syncs there)."""
 
-    def __init__(self, sim: Any, reads: set[int]) -> None:
+    def __init__(self, sim: Any, reads: set[int], recovered: set[int] | None = None) -> None:
         super().__init__(sim)
         self._reads = reads
+        self._recovered = recovered if recovered is not None else set()
+
+    def note_recovered(self) -> None:
+        self._recovered.add(self._sim.steps)
 
     def _read(self) -> None:
         self._reads.add(self._sim.steps)
@@ -472,6 +486,9 @@ class _Simulated:
     failure: str | None = None
     #: The steps at which the expert read the world (only with a disturbance schedule).
     reads: set[int] = field(default_factory=set)
+    #: The steps at which the expert finished a recovery (``WorldView.note_recovered``; only
+    #: with a disturbance schedule).
+    recovered: set[int] = field(default_factory=set)
     trace: ExpertTrace | None = None
 
 
@@ -503,7 +520,7 @@ def _simulate(
     run = _Simulated(episode, recorder, noise)
     view, driver, tracer = episode.view, None, None
     if schedule is not None:
-        view = _WatchedView(sim, run.reads)
+        view = _WatchedView(sim, run.reads, run.recovered)
         driver = DisturbanceDriver(sim, schedule) if schedule else None
         if trace:
             tracer = run.trace = ExpertTrace(sim)

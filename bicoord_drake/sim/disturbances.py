@@ -18,9 +18,11 @@ Kinds (:data:`DISTURBANCE_KINDS`):
   expert's first plan boundary after that, on an object the expert acts on only from that
   boundary on, and ends :data:`SETTLE_SECONDS` before it: the expert measures the object where
   the push left it and plans from there.
-- ``drop``: the executed command of a gripper holding an object, lifted off its support, forced
-  fully open for :data:`DROP_SECONDS` (the expert's command stays the label; what ran is the
-  episode's ``joint_action/executed``), with a plan boundary after it.
+- ``drop``: the executed command of a gripper holding an object, lifted off its support and
+  :data:`DROP_EDGE_MARGIN` inside the table's edge, forced fully open for :data:`DROP_SECONDS`
+  (the expert's command stays the label; what ran is the episode's
+  ``joint_action/executed``), with a plan boundary after it. The expert picks the object up
+  again (:mod:`bicoord_drake.tasks.recovery`).
 - ``knock``: a push on an object the expert placed (held, then released and at rest), with a
   plan boundary after it; its path is checked against the table's edge only (a knock may
   topple it onto its neighbours).
@@ -72,10 +74,15 @@ PUSH_SECONDS = 0.1
 PUSH_DISTANCE = (0.03, 0.05)
 #: Time a pushed object has to come to rest before the expert measures it again.
 SETTLE_SECONDS = 0.6
-#: How long a dropping gripper is held open.
+#: How long a dropping gripper takes to open: its executed command rises evenly from closed
+#: to :data:`DROP_OPENING` over this time, or is the expert's where that is wider (a grip
+#: that loosens: a gripper snapped open flicks a squeezed small cube off the table).
 DROP_SECONDS = 0.5
 #: The opening a dropping gripper is commanded (fully open).
 DROP_OPENING = 1.0
+#: A drop fires only while its object is this far (m) inside the table's edge: what falls
+#: stays on the table, where the expert can pick it up again.
+DROP_EDGE_MARGIN = 0.12
 #: A pushed object's predicted path (1.5 times its distance) stays this far inside the table's
 #: edge and this far from every other object's footprint.
 EDGE_MARGIN = 0.08
@@ -226,7 +233,10 @@ class DisturbanceDriver:
         executed = np.array(action, dtype=np.float64)
         layout = self.sim.station.layout
         for d in drops:
-            executed[layout.gripper(d.side)] = DROP_OPENING
+            i = layout.gripper(d.side)
+            # at least the opening the loosening grip has reached by now: the same whether
+            # the command is the expert's or a replayed executed one (idempotent)
+            executed[i] = max(executed[i], DROP_OPENING * (step - d.step + 1) / d.duration)
         return executed
 
     def clear(self) -> None:
@@ -464,13 +474,18 @@ def _plan_drop(rng: np.random.Generator, trace: ExpertTrace, station: Station) -
     last = trace.boundaries[-1] if trace.boundaries else 0
     u = float(rng.random())
     drops = []
+    from bicoord_drake.models.table import TABLE_SIZE
+
+    inside = np.asarray(TABLE_SIZE) / 2 - DROP_EDGE_MARGIN
     for name in _candidates(station.scene):
         for side in ("left", "right"):
             steps = [
                 s
                 for s in range(earliest, last - duration + 1)
                 if all(
-                    side in frames[t].fingers[name] and not frames[t].touching[name]
+                    side in frames[t].fingers[name]
+                    and not frames[t].touching[name]
+                    and np.all(np.abs(frames[t].poses[name][:2]) <= inside)
                     for t in range(s, s + duration)
                 )
             ]

@@ -141,15 +141,37 @@ class WorldView:
         """A :class:`WorldState` snapshot (what the stage predicates see)."""
         return WorldState.capture(self._sim, action)
 
+    def note_recovered(self) -> None:
+        """The expert has recovered from a disturbance here (it picked up and, where it had
+        placed it, placed again what fell: :mod:`bicoord_drake.tasks.recovery`). Nothing
+        changes in the world; a generator watching the expert ends the recovery's annotation
+        at this step."""
+
 
 def follow(ctx: SkillContext, view: WorldView, motion: Motion) -> Iterator[np.ndarray]:
     """Yield `motion`'s actions, then bring `ctx` up to date with the world: the joint
     positions it planned to (``ctx.q``), the measured object poses and, from them, the pose of
     each held object in its gripper (:meth:`SkillContext.refresh_grasps`).
 
+    Where the measured world shows that an object the motion carried fell on the way (out of
+    its hand, or resting far from where the motion set it down), the expert picks it up again
+    and, if the motion had placed it, places it again before planning on
+    (:mod:`bicoord_drake.tasks.recovery`).
+
     An expert runs every motion through this, so each plan starts from what happened."""
+    from functools import partial
+
+    from bicoord_drake.tasks.recovery import carried_by, fallen, recover_drops
+
+    held, placed = carried_by(ctx, motion)
+    placements = dict(ctx.placements)
+    ctx.placements.clear()
     yield from motion.actions()
     poses = view.object_transforms()
+    lost, missed = fallen(ctx, poses, held, placed, placements)
+    if lost or missed:
+        yield from recover_drops(ctx, view, partial(follow, ctx, view), lost, missed, placements)
+        return
     ctx.sync(ctx.q, object_poses=poses)
     ctx.refresh_grasps(poses)
 

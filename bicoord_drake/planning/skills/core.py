@@ -198,6 +198,14 @@ class SkillContext:
         )
         self.track_ik = BimanualIK(model)  # its nominal follows the previous sample
         self.stabilized: dict[str, np.ndarray] = {}  # side -> model lift of what it steadies
+        #: object -> how the plans since the last plan boundary set it down (``place``
+        #: records it), so an expert that finds it fallen on the way can place it again
+        #: (:mod:`bicoord_drake.tasks.recovery`).
+        self.placements: dict[str, Any] = {}
+        #: object -> the frame the model gives it in its body's frame (a shape symmetry: a
+        #: cube picked up again after it fell on another face); measured poses are turned
+        #: into it (:meth:`modelled`). Empty: the model's frames are the bodies'.
+        self.frames: dict[str, RigidTransform] = {}
 
     def steps(self, seconds: float) -> int:
         """Control periods that `seconds` last on this context's grid (:func:`periods`)."""
@@ -215,7 +223,7 @@ class SkillContext:
         if openings:
             self.opening.update(openings)
         held = {h.name for h in self.model.held.values()}
-        for name, X in (object_poses or {}).items():
+        for name, X in self.modelled(object_poses or {}).items():
             if name not in held:
                 self.model.set_object_pose(name, X)
 
@@ -226,6 +234,7 @@ class SkillContext:
         hand (its surface farther than GRASP_LOST_DISTANCE from the hand: slipped out,
         dropped) raises ``PlanningError('grasp_lost')``: planning on would carry it where it
         is not."""
+        object_poses = self.modelled(object_poses)
         for side, held in list(self.model.held.items()):
             X_WO = object_poses.get(held.name)
             if X_WO is None:
@@ -240,6 +249,12 @@ class SkillContext:
             self.model.detach(side, X_WO=X_WO)
             together = bool(self.model.holders(held.name))  # the other hand holds it too
             self.model.attach(held.name, side, self.q, X_WO=X_WO, together=together)
+
+    def modelled(self, object_poses: dict[str, RigidTransform]) -> dict[str, RigidTransform]:
+        """Measured body poses as the model's object frames (:attr:`frames`)."""
+        if not self.frames:
+            return object_poses
+        return {n: X @ self.frames[n] if n in self.frames else X for n, X in object_poses.items()}
 
     def hand_gap(self, side: str, name: str, X_WO: RigidTransform) -> float:
         """Least distance (m) from the surface of object `name` at `X_WO` to `side`'s hand
@@ -266,6 +281,7 @@ class SkillContext:
         """On an exception inside the block, put the tracked state (joints, openings, what is
         held, object poses) back as it was, then re-raise."""
         q, opening, stabilized = self.q.copy(), dict(self.opening), dict(self.stabilized)
+        placements = dict(self.placements)
         held = self.model.held
         poses = {o.name: self.model.object_pose(o.name) for o in self.model.scene.objects}
         try:
@@ -287,6 +303,7 @@ class SkillContext:
             for side in SIDES:
                 self.model.set_gripper(side, self.model.embodiment.home_opening)
             self.q, self.opening, self.stabilized = q, opening, stabilized
+            self.placements = placements
             raise
 
     @contextmanager

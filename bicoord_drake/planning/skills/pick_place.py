@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Sequence
 from contextlib import nullcontext
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from pydrake.all import RigidTransform
@@ -254,6 +254,19 @@ def _check_straight(ctx: SkillContext, side: str, qs, labels) -> None:
             )
 
 
+@dataclass(frozen=True)
+class Placement:
+    """How :func:`place` set an object down: its goal pose and settings, so the placement can
+    be done again (:meth:`redo`) by a hand that picked the object up after it fell."""
+
+    X_WO_goal: RigidTransform
+    settings: dict
+
+    def redo(self, ctx: SkillContext, side: str) -> ArmPlan:
+        """:func:`place` with this goal and these settings, by `side` (which holds the object)."""
+        return place(ctx, side, self.X_WO_goal, **self.settings)
+
+
 def place(
     ctx: SkillContext,
     side: str,
@@ -302,7 +315,7 @@ def place(
         except PlanningError as err:
             reasons.append(err.reason)
             continue
-        return _place_moves(
+        plan = _place_moves(
             ctx,
             side,
             held.name,
@@ -315,6 +328,19 @@ def place(
             gentle_release,
             settle,
         )
+        ctx.placements[held.name] = Placement(
+            X_WO_goal,
+            dict(
+                approach_height=approach_height,
+                retreat=retreat,
+                ignore=tuple(ignore),
+                opening=opening,
+                gentle_release=gentle_release,
+                yaws=None if yaws is None else tuple(yaws),
+                settle=settle,
+            ),
+        )
+        return plan
     raise PlanningError(
         "place_failed",
         f"{side} cannot place {held.name!r} at "
@@ -360,6 +386,9 @@ def drop_into(
         gentle_release=gentle_release,
     )
     plan.label = f"drop {held.name} into {container}"
+    # It lands below where it was let go (and may roll in the container): no placement for
+    # a recovery to compare with or to do again (bicoord_drake.tasks.recovery).
+    ctx.placements.pop(held.name, None)
     return plan
 
 

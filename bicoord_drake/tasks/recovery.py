@@ -1,0 +1,233 @@
+"""Getting back on track after a drop: what an expert does at a plan boundary when an object
+it carried is not where its plan put it (issue #54's recovery demonstrations).
+
+:func:`~bicoord_drake.tasks.base.follow` calls :func:`recover_drops` after every motion, with
+the objects the motion was planned to leave in a hand or set down by :func:`~bicoord_drake.
+planning.skills.place` (:func:`carried_by`). From the measured world it finds
+
+- a *lost grasp*: an object the plan still has in a hand lies farther than
+  ``GRASP_LOST_DISTANCE`` from it (it slipped out or was dropped): the hand picks it up again
+  where it lies (:func:`~bicoord_drake.planning.skills.pick`), and the expert plans on from
+  there, the object held with its new grasp;
+- a *missed placement*: an object the motion set down with ``place`` rests farther from the
+  pose the plan set it down at than :data:`MISSED_PLACEMENT` plus its own reach (:func:`reach`:
+  an object let go in a holder may tip that far and still be where it was put): it fell on the
+  way. A free hand picks it up and the placement is done again, with the same goal and
+  settings (``SkillContext.placements``). An object let fall into a container
+  (``drop_into``) has no placement to compare with.
+
+Before picking, the expert holds both arms still until the fallen object is at rest
+(:data:`REST_SPEED`, at most :data:`REST_WAIT` seconds). Nothing here acts in an undisturbed
+episode: a clean placement lands within a few millimetres of its goal, and a clean run never
+loses a grasp (it would have failed with ``grasp_lost``). A recovery that cannot be planned
+raises the :class:`~bicoord_drake.planning.errors.PlanningError` of its pick or place, whose
+reason names the object (the seed then fails).
+
+The world view is told where each recovery ends (``WorldView.note_recovered``), so a
+generator can annotate the recovery segment.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.planning.errors import PlanningError
+
+if TYPE_CHECKING:
+    from pydrake.all import RigidTransform
+
+    from bicoord_drake.planning.skills import Motion, SkillContext
+    from bicoord_drake.planning.skills.pick_place import Placement
+    from bicoord_drake.tasks.base import WorldView
+
+LOG = logging.getLogger(__name__)
+
+#: How far (m), beyond its own reach, a placed object may rest from the pose its placement
+#: planned before the expert takes it for fallen: a clean placement lands within a few mm, a
+#: drop on the way a hand's width or more away.
+MISSED_PLACEMENT = 0.04
+#: Speed (m/s) under which a fallen object counts as at rest, ready to be picked.
+REST_SPEED = 0.01
+#: Longest wait (s) for a fallen object to come to rest before it is picked anyway.
+REST_WAIT = 2.0
+#: Lift (m) of a recovery pick: clear of whatever the object fell among.
+RECOVERY_LIFT = 0.10
+
+#: Runs a motion and brings the context up to date (``follow`` bound to its context and view).
+Runner = Callable[["Motion"], Iterator[np.ndarray]]
+
+
+def carried_by(ctx: SkillContext, motion: Motion) -> tuple[dict[str, str], dict[str, str]]:
+    """What `motion` (already planned, so the context is at its end) carries: the objects it
+    leaves held (name -> side) and the objects it sets down with a placement recorded since
+    the last plan boundary (name -> side of the hand that placed it;
+    ``SkillContext.placements``)."""
+    held = {h.name: side for side, h in ctx.model.held.items()}
+    placed = {}
+    for _, side, kind, name in motion.events:
+        if kind == "detach" and name in ctx.placements and name not in held:
+            placed[name] = side
+    return held, placed
+
+
+def fallen(
+    ctx: SkillContext,
+    measured: dict[str, RigidTransform],
+    held: dict[str, str],
+    placed: dict[str, str],
+    placements: dict[str, Placement],
+) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
+    """From the measured poses: the lost grasps ((side, object), of `held`) and the missed
+    placements ((side, object), of `placed`, whose goals `placements` has), as the module
+    docstring defines them."""
+    from bicoord_drake.planning.skills.core import GRASP_LOST_DISTANCE
+
+    lost = [
+        (side, name)
+        for name, side in held.items()
+        if name in measured
+        and len(ctx.model.holders(name)) == 1
+        and ctx.hand_gap(side, name, measured[name]) > GRASP_LOST_DISTANCE
+    ]
+    missed = []
+    for name, side in placed.items():
+        goal = placements[name].X_WO_goal
+        if name not in measured:
+            continue
+        offset = float(np.linalg.norm(measured[name].translation() - goal.translation()))
+        if offset > MISSED_PLACEMENT + reach(ctx.model.object(name).shape):
+            missed.append((side, name))
+    return lost, missed
+
+
+def reach(shape) -> float:
+    """How far (m) the shape reaches from its frame's origin (its collision primitives'
+    vertices): an object set down in a holder or on a slope may tip or slide by up to
+    about that much from where it was let go, and still lie where it was put."""
+    points = [p.trimesh().vertices for p in shape.primitives()]
+    return float(np.max(np.linalg.norm(np.concatenate(points), axis=1)))
+
+
+def recover_drops(
+    ctx: SkillContext,
+    view: WorldView,
+    run: Runner,
+    lost: list[tuple[str, str]],
+    missed: list[tuple[str, str]],
+    placements: dict[str, Placement],
+) -> Iterator[np.ndarray]:
+    """Pick up each lost object again with its hand, and pick up and re-place each missed
+    placement (with its own hand, or the other one if that is free and its own is not);
+    yields the actions, ending with the context synced to the world."""
+    from bicoord_drake.planning.skills import merge, pick
+
+    names = [name for _, name in lost + missed]
+    yield from _wait_at_rest(ctx, view, names)
+    measured = view.object_transforms()
+    for name in names:
+        X = measured[name]
+        LOG.info(
+            "step %d: %s fell; at rest at %s, its z axis %s",
+            view.steps,
+            name,
+            np.round(X.translation(), 3).tolist(),
+            np.round(X.rotation().matrix()[:, 2], 2).tolist(),
+        )
+    for name in names:
+        frame = resting_frame(ctx.model.object(name).shape, measured[name])
+        if frame is not None:
+            ctx.frames[name] = frame
+    for side, name in lost:
+        ctx.model.detach(side, X_WO=ctx.modelled(measured)[name])
+    ctx.sync(ctx.q, object_poses=measured)
+    for side, name in lost:
+        plan = pick(ctx, side, name, lift=RECOVERY_LIFT, approach_opening=1.0)
+        plan.label = f"recover: pick {name} again"
+        yield from run(merge(ctx, *_arranged(side, plan)))
+    for side, name in missed:
+        hand = _free_hand(ctx, side, name)
+        placement = placements[name]
+        plan = pick(
+            ctx,
+            hand,
+            name,
+            lift=RECOVERY_LIFT,
+            approach_opening=1.0,
+            then=lambda hand=hand, placement=placement: placement.redo(ctx, hand),
+        )
+        plan.label = f"recover: pick {name} again and place it"
+        yield from run(merge(ctx, *_arranged(hand, plan)))
+    view.note_recovered()
+
+
+def resting_frame(shape, X_WB: RigidTransform) -> RigidTransform | None:
+    """For a box that fell on another face: the frame, among the box's symmetries (its axes
+    permuted and turned where the sides they swap are equal: every face of a cube), whose z
+    axis points most nearly up, in the body's frame, so the model can pick it up and set it
+    down as if it lay the right way up (where the tasks ask only for where it is, as for
+    jigsaw's cells); None for other shapes or where the body's own frame is best."""
+    from itertools import permutations, product
+
+    from pydrake.all import RigidTransform, RotationMatrix
+
+    from bicoord_drake.models.shapes import BoxShape
+
+    if not isinstance(shape, BoxShape):
+        return None
+    size = np.asarray(shape.size, dtype=float)
+    R_WB = X_WB.rotation().matrix()
+    best, best_up = None, R_WB[2, 2] + 1e-9
+    for perm in permutations(range(3)):
+        if not np.allclose(size[list(perm)], size, atol=1e-9):
+            continue
+        for signs in product((1.0, -1.0), repeat=3):
+            P = np.zeros((3, 3))
+            for j, (i, sgn) in enumerate(zip(perm, signs, strict=True)):
+                P[i, j] = sgn  # model axis j is body axis i (times sgn)
+            if np.linalg.det(P) < 0:
+                continue
+            up = float((R_WB @ P)[2, 2])
+            if up > best_up:
+                best, best_up = P, up
+    return None if best is None else RigidTransform(RotationMatrix(best), np.zeros(3))
+
+
+def _arranged(side: str, plan):
+    """(left, right) for :func:`merge`: `plan` on its side, the other arm holding."""
+    return (plan, None) if side == "left" else (None, plan)
+
+
+def _free_hand(ctx: SkillContext, side: str, name: str) -> str:
+    """The hand that picks up fallen `name`: `side` unless it holds something and the other
+    hand is free."""
+    held = ctx.model.held
+    if side not in held:
+        return side
+    other = next(s for s in SIDES if s != side)
+    if other not in held:
+        return other
+    raise PlanningError(
+        "recovery_failed", f"both hands hold something; none can pick up fallen {name!r}"
+    )
+
+
+def _wait_at_rest(ctx: SkillContext, view: WorldView, names: list[str]) -> Iterator[np.ndarray]:
+    """Both arms hold still (as commanded now) until every object of `names` is at rest, at
+    most REST_WAIT seconds."""
+    from bicoord_drake.planning.skills import hold_still
+
+    action = hold_still(ctx, ctx.dt).actions()[0]
+    steps = max(1, int(np.ceil(REST_WAIT / ctx.dt)))
+    before = view.object_poses()
+    for _ in range(steps):
+        yield action
+        now = view.object_poses()
+        speeds = [np.linalg.norm(now[n][:3] - before[n][:3]) / ctx.dt for n in names]
+        before = now
+        if max(speeds) < REST_SPEED:
+            return
