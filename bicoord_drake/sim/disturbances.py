@@ -18,11 +18,11 @@ Kinds (:data:`DISTURBANCE_KINDS`):
   expert's first plan boundary after that, on an object the expert acts on only from that
   boundary on, and ends :data:`SETTLE_SECONDS` before it: the expert measures the object where
   the push left it and plans from there.
-- ``drop``: the executed command of a gripper holding an object, lifted off its support and
-  :data:`DROP_EDGE_MARGIN` inside the table's edge, forced fully open for :data:`DROP_SECONDS`
-  (the expert's command stays the label; what ran is the episode's
-  ``joint_action/executed``), with a plan boundary after it. The expert picks the object up
-  again (:mod:`bicoord_drake.tasks.recovery`).
+- ``drop``: the executed command of a gripper holding an object alone (not with the other
+  hand), lifted off its support and :data:`DROP_EDGE_MARGIN` inside the table's edge, opened
+  evenly to fully open over :data:`DROP_SECONDS` (a grip that loosens; the expert's command
+  stays the label, what ran is the episode's ``joint_action/executed``), with a plan boundary
+  after it. The expert picks the object up again (:mod:`bicoord_drake.tasks.recovery`).
 - ``knock``: a push on an object the expert placed (held, then released and at rest), with a
   plan boundary after it; its path is checked against the table's edge only (a knock may
   topple it onto its neighbours).
@@ -483,7 +483,7 @@ def _plan_drop(rng: np.random.Generator, trace: ExpertTrace, station: Station) -
                 s
                 for s in range(earliest, last - duration + 1)
                 if all(
-                    side in frames[t].fingers[name]
+                    frames[t].fingers[name] == {side}
                     and not frames[t].touching[name]
                     and np.all(np.abs(frames[t].poses[name][:2]) <= inside)
                     for t in range(s, s + duration)

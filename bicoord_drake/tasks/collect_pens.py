@@ -281,6 +281,7 @@ class CollectPens(Task):
     # ---------------------------------------------------------------- expert
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
         ctx = self.skill_context(view)
+        ctx.picker = partial(_pick, ctx)  # a fallen pen is picked up as the pens are
 
         run = partial(follow, ctx, view)
 

@@ -123,9 +123,8 @@ def recover_drops(
 ) -> Iterator[np.ndarray]:
     """Pick up each lost object again with its hand, and pick up and re-place each missed
     placement (with its own hand, or the other one if that is free and its own is not);
-    yields the actions, ending with the context synced to the world."""
-    from bicoord_drake.planning.skills import merge, pick
-
+    yields the actions, ending with the context synced to the world. Where the other arm is
+    in the way of a pick, it goes home first."""
     names = [name for _, name in lost + missed]
     yield from _wait_at_rest(ctx, view, names)
     measured = view.object_transforms()
@@ -146,22 +145,15 @@ def recover_drops(
         ctx.model.detach(side, X_WO=ctx.modelled(measured)[name])
     ctx.sync(ctx.q, object_poses=measured)
     for side, name in lost:
-        plan = pick(ctx, side, name, lift=RECOVERY_LIFT, approach_opening=1.0)
-        plan.label = f"recover: pick {name} again"
-        yield from run(merge(ctx, *_arranged(side, plan)))
+        yield from _pick_up(ctx, run, side, lambda side=side, name=name: _pick(ctx, side, name))
     for side, name in missed:
         hand = _free_hand(ctx, side, name)
         placement = placements[name]
-        plan = pick(
-            ctx,
-            hand,
-            name,
-            lift=RECOVERY_LIFT,
-            approach_opening=1.0,
-            then=lambda hand=hand, placement=placement: placement.redo(ctx, hand),
-        )
-        plan.label = f"recover: pick {name} again and place it"
-        yield from run(merge(ctx, *_arranged(hand, plan)))
+
+        def again(hand=hand, name=name, placement=placement):
+            return _pick(ctx, hand, name).then(placement.redo(ctx, hand))
+
+        yield from _pick_up(ctx, run, hand, again)
     view.note_recovered()
 
 
@@ -195,6 +187,39 @@ def resting_frame(shape, X_WB: RigidTransform) -> RigidTransform | None:
             if up > best_up:
                 best, best_up = P, up
     return None if best is None else RigidTransform(RotationMatrix(best), np.zeros(3))
+
+
+def _pick(ctx: SkillContext, side: str, name: str):
+    """`side` picks fallen `name` up: the task's own way (``SkillContext.picker``) or
+    :func:`~bicoord_drake.planning.skills.pick` with generated grasps, the jaw opening on the
+    way down."""
+    from bicoord_drake.planning.skills import pick
+
+    if ctx.picker is not None:
+        plan = ctx.picker(side, name)
+    else:
+        plan = pick(ctx, side, name, lift=RECOVERY_LIFT, approach_opening=1.0)
+    plan.label = f"recover: pick {name} again"
+    return plan
+
+
+def _pick_up(ctx: SkillContext, run: Runner, side: str, plan: Callable) -> Iterator[np.ndarray]:
+    """Run `plan()` (a plan of `side`) with the other arm still; where it cannot be planned
+    (the other arm in the way), the other arm first goes home, then it is planned again."""
+    from bicoord_drake.planning.skills import merge, retreat
+
+    try:
+        with ctx.transaction():
+            motion = merge(ctx, *_arranged(side, plan()))
+    except PlanningError as err:
+        other = next(s for s in SIDES if s != side)
+        home = ctx.model.home[ctx.model.side_slice(other)]
+        if np.allclose(ctx.arm_q(other), home):
+            raise
+        LOG.info("%s; the %s arm stands aside first", err, other)
+        yield from run(merge(ctx, *_arranged(other, retreat(ctx, other))))
+        motion = merge(ctx, *_arranged(side, plan()))
+    yield from run(motion)
 
 
 def _arranged(side: str, plan):

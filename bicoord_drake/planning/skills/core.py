@@ -206,6 +206,10 @@ class SkillContext:
         #: cube picked up again after it fell on another face); measured poses are turned
         #: into it (:meth:`modelled`). Empty: the model's frames are the bodies'.
         self.frames: dict[str, RigidTransform] = {}
+        #: How the expert picks an object up again after it fell, ``picker(side, name)`` ->
+        #: the pick's plan: a task whose objects need grasps of its own sets it (None: ``pick``
+        #: with generated grasps; :mod:`bicoord_drake.tasks.recovery`).
+        self.picker: Callable[[str, str], ArmPlan] | None = None
 
     def steps(self, seconds: float) -> int:
         """Control periods that `seconds` last on this context's grid (:func:`periods`)."""
