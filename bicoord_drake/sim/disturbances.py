@@ -20,7 +20,9 @@ Kinds (:data:`DISTURBANCE_KINDS`):
   the push left it and plans from there.
 - ``drop``: the executed command of a gripper holding an object alone (not with the other
   hand), lifted off its support and :data:`DROP_EDGE_MARGIN` inside the table's edge, opened
-  evenly to fully open over :data:`DROP_SECONDS` (a grip that loosens; the expert's command
+  evenly to fully open over :data:`DROP_OPEN_SECONDS`, then held open to the end of
+  :data:`DROP_SECONDS` (a grip that loosens, and lets go: fingers that closed again while the
+  object still fell between them would pinch and fling it; the expert's command
   stays the label, what ran is the episode's ``joint_action/executed``), with a plan boundary
   after it. The expert picks the object up again (:mod:`bicoord_drake.tasks.recovery`).
 - ``knock``: a push on an object the expert placed (held, then released and at rest), with a
@@ -77,7 +79,9 @@ SETTLE_SECONDS = 0.6
 #: How long a dropping gripper takes to open: its executed command rises evenly from closed
 #: to :data:`DROP_OPENING` over this time, or is the expert's where that is wider (a grip
 #: that loosens: a gripper snapped open flicks a squeezed small cube off the table).
-DROP_SECONDS = 0.5
+DROP_OPEN_SECONDS = 0.5
+#: How long a drop acts: the opening, then the gripper held open while the object falls clear.
+DROP_SECONDS = 1.0
 #: The opening a dropping gripper is commanded (fully open).
 DROP_OPENING = 1.0
 #: A drop fires only while its object is this far (m) inside the table's edge: what falls
@@ -203,6 +207,7 @@ class DisturbanceDriver:
             raise ValueError(f"disturbance of {unknown}: no such object; objects: {sorted(bodies)}")
         self._index = {d.body: bodies[d.body].index() for d in self.disturbances}
         self._port = sim.station.plant.get_applied_spatial_force_input_port()
+        self._open_steps = steps_of(DROP_OPEN_SECONDS, sim.station.config.control_period)
         self._forcing = False
 
     def forces(self, step: int) -> list:
@@ -236,7 +241,8 @@ class DisturbanceDriver:
             i = layout.gripper(d.side)
             # at least the opening the loosening grip has reached by now: the same whether
             # the command is the expert's or a replayed executed one (idempotent)
-            executed[i] = max(executed[i], DROP_OPENING * (step - d.step + 1) / d.duration)
+            share = min(1.0, (step - d.step + 1) / self._open_steps)
+            executed[i] = max(executed[i], DROP_OPENING * share)
         return executed
 
     def clear(self) -> None:

@@ -193,7 +193,7 @@ def test_the_windows(jigsaw):
         assert 8 <= push.step and push.end + 9 <= 60 and push.duration == 2
         assert 1.0 < np.linalg.norm(push.force) / (0.05 * 9.81) < 4 and push.force[2] == 0
         assert -0.02 < push.point[2] < -0.01  # below the centre, above the table (cube: 2 cm)
-        assert (drop.body, drop.side) == ("spare_left_1", "left") and drop.duration == 8
+        assert (drop.body, drop.side) == ("spare_left_1", "left") and drop.duration == 15
         assert 40 <= drop.step and drop.end <= 80
         assert knock.body in {"spare_left_1", "spare_right_1"}  # placed, then left alone
         released = {"spare_left_1": 90, "spare_right_1": 95}[knock.body]
@@ -276,7 +276,8 @@ def test_a_drop_opens_the_executed_gripper_evenly_only_while_it_acts(jigsaw):
     )
     out = [driver.before_step(t, action) for t in range(6)]
     opened = [float(a[layout.gripper("left")]) for a in out]
-    assert opened == pytest.approx([0.0, 0.0, 1 / 3, 2 / 3, 1.0, 0.0])  # a loosening grip
+    n = dist.steps_of(dist.DROP_OPEN_SECONDS, sim.station.config.control_period)
+    assert opened == pytest.approx([0.0, 0.0, 1 / n, 2 / n, 3 / n, 0.0])  # a loosening grip
     again = [driver.before_step(t, a) for t, a in enumerate(out)]  # a replay of what ran
     assert all(np.array_equal(a, b) for a, b in zip(again, out, strict=True))
     assert all(a[layout.gripper("right")] == 0.0 for a in out)

@@ -22,9 +22,11 @@ from bicoord_drake.planning.skills import merge, pick, place
 from bicoord_drake.runner import generate as gen
 from bicoord_drake.sim import disturbances as dist
 from bicoord_drake.tasks.recovery import (
+    MISSED_ON_TABLE,
     MISSED_PLACEMENT,
     carried_by,
     fallen,
+    missed_distance,
     reach,
     resting_frame,
 )
@@ -81,16 +83,26 @@ def test_a_cube_out_of_its_hand_and_a_missed_placement_are_fallen(planned):
     ctx, motion, goal = planned
     held, placed = carried_by(ctx, motion)
     on_table = RigidTransform([-0.25, -0.1, 0.77])
-    far = MISSED_PLACEMENT + reach(ctx.model.object("spare_right_1").shape)
+    far = missed_distance(ctx.model.object("spare_right_1").shape, goal)
+    assert far == MISSED_ON_TABLE  # set down on the table top
     off_goal = RigidTransform(goal.translation() + [far + 0.01, 0.0, 0.0])
     measured = as_measured(ctx, spare_left_1=on_table, spare_right_1=off_goal)
     lost, missed = fallen(ctx, measured, held, placed, dict(ctx.placements))
     assert lost == [("left", "spare_left_1")]
     assert missed == [("right", "spare_right_1")]
-    # tipped or slid by less than its reach beyond the margin: where it was put, not fallen
-    tipped = RigidTransform(goal.translation() + [far - 0.01, 0.0, 0.0])
+    # a few mm short of that: where it was put, not fallen
+    tipped = RigidTransform(goal.translation() + [far - 0.005, 0.0, 0.0])
     measured = as_measured(ctx, spare_right_1=tipped)
     assert fallen(ctx, measured, held, placed, dict(ctx.placements)) == ([], [])
+
+
+def test_off_the_table_a_placement_may_land_farther_from_its_goal():
+    pen = CylinderShape(radius=0.005, length=0.12)
+    in_holder = RigidTransform([0.0, 0.0, 0.87])  # let go above a holder's bottom
+    assert missed_distance(pen, in_holder) == pytest.approx(MISSED_PLACEMENT + reach(pen))
+    assert reach(pen) == pytest.approx(np.hypot(0.06, 0.005), abs=1e-3)
+    on_table = RigidTransform([0.0, 0.0, 0.75 + 0.06])  # standing on the table top
+    assert missed_distance(pen, on_table) == MISSED_ON_TABLE
 
 
 def test_a_cube_on_its_side_is_picked_up_as_if_upright():
