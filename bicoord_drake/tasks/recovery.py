@@ -89,14 +89,10 @@ def fallen(
     """From the measured poses: the lost grasps ((side, object), of `held`) and the missed
     placements ((side, object), of `placed`, whose goals `placements` has), as the module
     docstring defines them."""
-    from bicoord_drake.planning.skills.core import GRASP_LOST_DISTANCE
-
     lost = [
         (side, name)
-        for name, side in held.items()
-        if name in measured
-        and len(ctx.model.holders(name)) == 1
-        and ctx.hand_gap(side, name, measured[name]) > GRASP_LOST_DISTANCE
+        for side, name, _ in ctx.lost_grasps(measured)
+        if held.get(name) == side and len(ctx.model.holders(name)) == 1
     ]
     missed = []
     for name, side in placed.items():
@@ -105,7 +101,8 @@ def fallen(
             continue
         offset = float(np.linalg.norm(measured[name].translation() - goal.translation()))
         LOG.debug("%s set down %.3f m from its goal %s", name, offset, goal.translation())
-        if offset > missed_distance(ctx.model.object(name).shape, goal):
+        shape = ctx.model.object(name).shape
+        if offset > MISSED_ON_TABLE and offset > missed_distance(shape, goal):
             missed.append((side, name))
     return lost, missed
 
@@ -156,8 +153,7 @@ def recover_drops(
             np.round(X.translation(), 3).tolist(),
             np.round(X.rotation().matrix()[:, 2], 2).tolist(),
         )
-    for name in names:
-        frame = resting_frame(ctx.model.object(name).shape, measured[name])
+        frame = resting_frame(ctx.model.object(name).shape, X)
         if frame is not None:
             ctx.frames[name] = frame
     for side, name in lost:

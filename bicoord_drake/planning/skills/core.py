@@ -235,24 +235,37 @@ class SkillContext:
         """Re-measure each held object's pose in its gripper from measured poses (a grasp
         settles by a few mm when the fingers close), so later placements aim right. Held
         objects missing from `object_poses` keep their grasp. A held object no longer in its
-        hand (its surface farther than GRASP_LOST_DISTANCE from the hand: slipped out,
-        dropped) raises ``PlanningError('grasp_lost')``: planning on would carry it where it
-        is not."""
+        hand (:meth:`lost_grasps`: slipped out, dropped) raises
+        ``PlanningError('grasp_lost')``: planning on would carry it where it is not."""
+        if lost := self.lost_grasps(object_poses):
+            side, name, gap = lost[0]
+            raise PlanningError(
+                "grasp_lost",
+                f"{side} no longer holds {name!r}: measured {gap * 100:.1f} cm from its hand",
+            )
         object_poses = self.modelled(object_poses)
         for side, held in list(self.model.held.items()):
             X_WO = object_poses.get(held.name)
             if X_WO is None:
                 continue
-            gap = self.hand_gap(side, held.name, X_WO)
-            if gap > GRASP_LOST_DISTANCE:
-                raise PlanningError(
-                    "grasp_lost",
-                    f"{side} no longer holds {held.name!r}: measured {gap * 100:.1f} cm from "
-                    "its hand",
-                )
             self.model.detach(side, X_WO=X_WO)
             together = bool(self.model.holders(held.name))  # the other hand holds it too
             self.model.attach(held.name, side, self.q, X_WO=X_WO, together=together)
+
+    def lost_grasps(self, object_poses: dict[str, RigidTransform]) -> list[tuple[str, str, float]]:
+        """The grasps the measured poses (body frames) show lost: ``(side, object, gap)`` for
+        each held object whose surface lies farther than ``GRASP_LOST_DISTANCE`` from its
+        hand (the gap in m). Held objects missing from `object_poses` count as held."""
+        object_poses = self.modelled(object_poses)
+        lost = []
+        for side, held in self.model.held.items():
+            X_WO = object_poses.get(held.name)
+            if X_WO is None:
+                continue
+            gap = self.hand_gap(side, held.name, X_WO)
+            if gap > GRASP_LOST_DISTANCE:
+                lost.append((side, held.name, gap))
+        return lost
 
     def modelled(self, object_poses: dict[str, RigidTransform]) -> dict[str, RigidTransform]:
         """Measured body poses as the model's object frames (:attr:`frames`)."""
