@@ -62,6 +62,10 @@ REST_WAIT = 2.0
 #: Lift (m) of a recovery pick: clear of whatever the object fell among.
 RECOVERY_LIFT = 0.10
 
+#: How far (m) a hand that starts too close to the scene (what fell landed against its
+#: fingers) rises before the recovery's picks are planned.
+BACK_OFF = 0.05
+
 #: Runs a motion and brings the context up to date (``follow`` bound to its context and view).
 Runner = Callable[["Motion"], Iterator[np.ndarray]]
 
@@ -142,6 +146,7 @@ def recover_drops(
     yields the actions, ending with the context synced to the world. Where the other arm is
     in the way of a pick, it goes home first."""
     names = [name for _, name in lost + missed]
+    yield from _let_go(ctx, [side for side, _ in lost])
     yield from _wait_at_rest(ctx, view, names)
     measured = view.object_transforms()
     for name in names:
@@ -159,6 +164,7 @@ def recover_drops(
     for side, name in lost:
         ctx.model.detach(side, X_WO=ctx.modelled(measured)[name])
     ctx.sync(ctx.q, object_poses=measured)
+    yield from _backed_off(ctx, run)
     for side, name in lost:
         yield from _pick_up(ctx, run, side, lambda side=side, name=name: _pick(ctx, side, name))
     for side, name in missed:
@@ -218,6 +224,55 @@ def _pick(ctx: SkillContext, side: str, name: str):
     return plan
 
 
+def _let_go(ctx: SkillContext, sides: list[str]) -> Iterator[np.ndarray]:
+    """Open the hands of `sides` (gently, arms still): a hand whose grasp was lost still
+    commands its grip, and would close on what slipped and jammed between its fingers."""
+    from bicoord_drake.models.embodiment import other_side
+    from bicoord_drake.planning.skills import combine, grip, hold
+
+    for side in sides:
+        opened = grip(ctx, side, 1.0, gentle=True, label="recover: let go")
+        yield from combine(*_arranged(side, opened, hold(ctx, other_side(side), 0))).actions()
+
+
+def _backed_off(ctx: SkillContext, run: Runner) -> Iterator[np.ndarray]:
+    """Raise straight up by :data:`BACK_OFF` each hand that is closer to the scene (a fallen
+    object, the table) than the planning clearance, so the recovery's plans start free: a
+    Cartesian track (planned with the other arm where it stands), which may start in a shallow
+    contact and leave it; where the contact is deeper, with the touched objects left out of
+    the check (the hand moves away from them)."""
+    from pydrake.all import RigidTransform
+
+    from bicoord_drake.models.embodiment import other_side
+    from bicoord_drake.planning.skills import combine, hold
+    from bicoord_drake.planning.skills.tracking import track
+
+    with ctx.model.padded(ctx.clearance, ctx.env_clearance):
+        pairs = ctx.model.colliding_pairs(ctx.q)
+    for side in SIDES:
+        arm = f"{side}_arm/"
+        touched = {
+            b if a.startswith(arm) else a
+            for a, b, _ in pairs
+            if a.startswith(arm) != b.startswith(arm) and (a + b).count("_arm/") == 1
+        }
+        if not touched:
+            continue
+        X = ctx.model.tcp_pose(ctx.q, side)
+
+        def up(s: float, X=X) -> RigidTransform:
+            return RigidTransform(X.rotation(), X.translation() + [0.0, 0.0, s * BACK_OFF])
+
+        LOG.info("the %s hand starts against %s; it backs off first", side, sorted(touched))
+        try:
+            with ctx.transaction():
+                plan = track(ctx, side, up, BACK_OFF, 0.0, label="recover: back off")
+        except PlanningError:
+            objects = sorted(touched & {o.name for o in ctx.model.scene.objects})
+            plan = track(ctx, side, up, BACK_OFF, 0.0, label="recover: back off", ignore=objects)
+        yield from run(combine(*_arranged(side, plan, hold(ctx, other_side(side), 0))))
+
+
 def _pick_up(ctx: SkillContext, run: Runner, side: str, plan: Callable) -> Iterator[np.ndarray]:
     """Run `plan()` (a plan of `side`) with the other arm still; where it cannot be planned
     (the other arm in the way), the other arm first goes home, then it is planned again."""
@@ -237,9 +292,10 @@ def _pick_up(ctx: SkillContext, run: Runner, side: str, plan: Callable) -> Itera
     yield from run(motion)
 
 
-def _arranged(side: str, plan):
-    """(left, right) for :func:`merge`: `plan` on its side, the other arm holding."""
-    return (plan, None) if side == "left" else (None, plan)
+def _arranged(side: str, plan, other=None):
+    """(left, right) for :func:`merge`: `plan` on its side, `other` (None: the other arm
+    holding) on the other."""
+    return (plan, other) if side == "left" else (other, plan)
 
 
 def _free_hand(ctx: SkillContext, side: str, name: str) -> str:
