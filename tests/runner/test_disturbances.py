@@ -351,7 +351,6 @@ def test_the_file_records_the_disturbance_and_its_recovery_row(tmp_path):
 
 
 # --------------------------------------------------------------------------- an episode
-@pytest.mark.slow
 def test_a_pushed_episode_is_kept_recorded_and_replayed(tmp_path):
     """balance_roller seed 0 with ``disturb=push``: the cube is pushed a few cm before the
     hands lift the roller, the expert carries the roller over the cube where it now stands and

@@ -164,3 +164,38 @@ def test_a_dropped_cube_is_picked_up_again_recorded_and_replayed(tmp_path):
         )  # fmt: skip
     )
     assert report.rollouts[0].success and report.rollouts[0].disturbances
+
+
+def test_a_dropped_mic_is_picked_up_again_and_handed_over(tmp_path):
+    """exchange_mics seed 0 with ``disturb=drop`` (a handover task, where jigsaw is a
+    pick-and-place one): a mic slips out of the hand that carries it to the meeting point; the
+    expert picks it up again, the handover and the rest of the task follow, and the replay
+    reproduces every stage with the drop applied again."""
+    from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate
+
+    config = gen.GenerateConfig(
+        task="exchange_mics", seed=0, episodes=1, max_tries=1, render=False,
+        disturb="drop", out=str(tmp_path / "a"), workers=1,
+    )  # fmt: skip
+    summary = gen.generate(config)
+    assert summary.kept == 1, [f.reason for f in summary.failures]
+    episode = read_episode(summary.root / "data" / "episode0.hdf5", images=False)
+    (drop,) = dist.from_records(episode.disturbances)
+    ((start, end, subgoal, *_),) = episode.recovery
+    assert start == drop.step < drop.end < end < episode.length
+    assert subgoal.startswith(f"recover from the drop of {drop.body!r}")
+    mic = episode.objects[drop.body]
+    assert mic[drop.end + 5, 2] < mic[drop.step, 2]  # it fell (carried low: a cm or so)
+    assert mic[end - 1, 2] > mic[drop.end + 5, 2] + 0.03  # and is lifted again
+    report = evaluate(
+        EvaluateConfig(
+            task="exchange_mics",
+            policy="replay",
+            episodes=1,
+            data=str(summary.root),
+            render=False,
+            workers=1,
+            out=str(tmp_path / "replay"),
+        )  # fmt: skip
+    )
+    assert report.rollouts[0].success and report.rollouts[0].disturbances
