@@ -19,6 +19,8 @@ ARM_COLOURS = {
     "neither": "#bababa",
 }
 """Stage bar colours by which arm works during the stage."""
+RECOVERY_COLOUR = "#d7191c"
+"""The colour of a disturbance's recovery segment on a stage timeline."""
 
 
 def _png(fig) -> bytes:
@@ -92,29 +94,47 @@ def _runs(states: np.ndarray, start: int, end: int) -> list[tuple[int, int, str]
 
 
 def timeline_png(
-    title: str, rows: Sequence[Sequence], states: np.ndarray, test: str | None = None
+    title: str,
+    rows: Sequence[Sequence],
+    states: np.ndarray,
+    test: str | None = None,
+    recovery: Sequence[Sequence] = (),
 ) -> bytes:
     """One horizontal bar per stage over its frames ``[start, end)``; along the bar, the colour
     says which arm works at each frame (``states`` from :func:`arm_states`, under the movement
-    test named ``test``, shown in the legend)."""
+    test named ``test``, shown in the legend). Each row of `recovery` (a disturbance and the
+    expert's recovery from it, ``stages/recovery``: start, end, subgoal, ...) is a bar of its
+    own below the stages, hatched, with its frames shaded across the stage bars."""
     from matplotlib.figure import Figure
     from matplotlib.patches import Patch
 
-    height = 1.0 + 0.32 * len(rows)
+    bars = [*rows, *recovery]
+    height = 1.0 + 0.32 * len(bars)
     fig = Figure(figsize=(8.0, height), layout="constrained")
     ax = fig.add_subplot()
     for k, (start, end, *_) in enumerate(rows):
         for first, stop, state in _runs(states, int(start), int(end)):
             ax.barh(k, stop - first, left=first, height=0.7, color=ARM_COLOURS[state], lw=0)
         ax.barh(k, end - start, left=start, height=0.7, fill=False, edgecolor="#333", lw=0.6)
-    ax.set_yticks(range(len(rows)), [str(r[2]) for r in rows], fontsize="small")
+    for k, (start, end, *_) in enumerate(recovery, start=len(rows)):
+        ax.axvspan(int(start), int(end), color=RECOVERY_COLOUR, alpha=0.15, lw=0)
+        ax.barh(
+            k, int(end) - int(start), left=int(start), height=0.7, color="white",
+            edgecolor=RECOVERY_COLOUR, hatch="///", lw=0.8,
+        )  # fmt: skip
+    ax.set_yticks(range(len(bars)), [str(r[2]) for r in bars], fontsize="small")
     ax.invert_yaxis()
-    ax.set_xlim(0, max(int(r[1]) for r in rows))
+    ax.set_xlim(0, max(int(r[1]) for r in bars))
     ax.set_xlabel("frame")
     ax.set_title(title, fontsize="medium")
     ax.grid(axis="x", alpha=0.3)
+    handles = [Patch(color=c, label=a) for a, c in ARM_COLOURS.items()]
+    if recovery:
+        handles.append(
+            Patch(facecolor="white", edgecolor=RECOVERY_COLOUR, hatch="///", label="recovery")
+        )
     ax.legend(
-        handles=[Patch(color=c, label=a) for a, c in ARM_COLOURS.items()],
+        handles=handles,
         fontsize="x-small",
         loc="upper left",
         bbox_to_anchor=(1.01, 1.0),

@@ -6,7 +6,7 @@ movement tests, the paper's and the jitter-free one, each column naming its test
 distance d0 and MRD, ARD in metres beside the ratios); STI curves, one panel per test; the
 episode-length histogram; for a few episodes per task a stage timeline (one bar per stage,
 coloured by which arm works under the jitter-free test, with each stage's shares under both
-tests) and the first and last frame of every camera; one embedded video.
+tests; a disturbed episode's recovery segments as hatched bars of their own) and the first and last frame of every camera; one embedded video.
 """
 
 from __future__ import annotations
@@ -203,12 +203,17 @@ def _episode_block(episode: Episode, max_side: int = 240) -> str:
     states = figures.arm_states(*signals, move_tol=JITTER_FREE_TEST.move_tol)
     paper_states = figures.arm_states(*signals, move_tol=PAPER_TEST.move_tol)
     title = f"{episode.task} seed {episode.seed} — {episode.length} frames"
-    timeline = figures.timeline_png(title, episode.stages, states, test=JITTER_FREE_TEST.name)
+    recovery = list(getattr(episode, "recovery", None) or [])
+    timeline = figures.timeline_png(
+        title, episode.stages, states, test=JITTER_FREE_TEST.name, recovery=recovery
+    )
     stage_rows = []
-    for k, (s, e, g, lt, rt, _) in enumerate(episode.stages):
+    numbered = [(str(k), row) for k, row in enumerate(episode.stages)]
+    numbered += [(f"recovery {k}", row) for k, row in enumerate(recovery)]
+    for k, (s, e, g, lt, rt, _) in numbered:
         stage_rows.append(
             [
-                *(str(k), f"{s}–{e}", html.escape(g), html.escape(lt), html.escape(rt)),
+                *(k, f"{s}–{e}", html.escape(g), html.escape(lt), html.escape(rt)),
                 _shares(states[s:e]),
                 _shares(paper_states[s:e]),
             ]

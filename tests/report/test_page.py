@@ -191,3 +191,38 @@ def test_chromium_screenshot_shows_the_page(dataset, tmp_path):
     # rendered content, not a blank page: dark text, the plots' colours, the camera frames
     assert (pixels.sum(axis=2) < 150).mean() > 0.002
     assert len(np.unique(pixels.reshape(-1, 3), axis=0)) > 500
+
+
+def test_a_recovery_segment_is_shown_on_the_timeline_and_in_the_stage_table(dataset):
+    """An episode with a disturbance: its recovery row (``stages/recovery``) is a hatched bar
+    of its own below the stages, its frames shaded across them, and a row of the table."""
+    from bicoord_drake.data.episode import read_episode
+    from bicoord_drake.report import figures
+    from bicoord_drake.report.page import _episode_block
+
+    (path,) = sorted(dataset.glob("demo_task/default/data/episode0.hdf5"))
+    episode = read_episode(path, images=False)
+    clean = _episode_block(episode)
+    subgoal = "recover from the push on 'cube'"
+    episode.recovery = [[3, 8, subgoal, "", "", 0.0]]
+    disturbed = _episode_block(episode)
+    assert subgoal not in clean and html_escape(subgoal) in disturbed
+    assert "recovery 0" in disturbed
+
+    states = np.array(["left"] * episode.length)
+
+    def image(recovery):
+        png = figures.timeline_png("t", episode.stages, states, recovery=recovery)
+        return np.asarray(Image.open(io.BytesIO(png)).convert("RGB")).astype(int)
+
+    red = np.array([0xD7, 0x19, 0x1C])
+    plain, marked = image([]), image(episode.recovery)
+    assert marked.shape[0] > plain.shape[0]  # a bar more
+    assert not np.any(np.all(np.abs(plain - red) < 30, axis=-1))
+    assert np.sum(np.all(np.abs(marked - red) < 30, axis=-1)) > 100  # the hatched bar
+
+
+def html_escape(text: str) -> str:
+    import html
+
+    return html.escape(text)
