@@ -131,16 +131,7 @@ def test_a_dropped_cube_is_picked_up_again_recorded_and_replayed(tmp_path):
     spare; at the next plan boundary the expert finds the cube on the table, picks it up
     again and fills the grid; the recovery row spans the drop to the end of the new pick, and
     the replay reproduces every stage."""
-    from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate
-
-    config = gen.GenerateConfig(
-        task="jigsaw", seed=0, episodes=1, max_tries=1, render=False,
-        disturb="drop", out=str(tmp_path / "a"), workers=1,
-    )  # fmt: skip
-    summary = gen.generate(config)
-    assert summary.kept == 1, [f.reason for f in summary.failures]
-    episode = read_episode(summary.root / "data" / "episode0.hdf5", images=False)
-    (drop,) = dist.from_records(episode.disturbances)
+    root, episode, drop = dropped("jigsaw", tmp_path / "a")
     assert drop.kind == "drop" and drop.side == "right"
     ((start, end, subgoal, *_),) = episode.recovery
     assert start == drop.step < drop.end < end < episode.length
@@ -152,18 +143,8 @@ def test_a_dropped_cube_is_picked_up_again_recorded_and_replayed(tmp_path):
     executed = episode.executed_action[:, grip]
     assert executed[drop.end - 1] == pytest.approx(1.0)  # the grip opened
     assert np.all(episode.joint_action[drop.step : drop.end, grip] < 0.5)  # the label: closed
-    report = evaluate(
-        EvaluateConfig(
-            task="jigsaw",
-            policy="replay",
-            episodes=1,
-            data=str(summary.root),
-            render=False,
-            workers=1,
-            out=str(tmp_path / "replay"),
-        )  # fmt: skip
-    )
-    assert report.rollouts[0].success and report.rollouts[0].disturbances
+    replayed = replay(root, "jigsaw", tmp_path / "replay")
+    assert replayed.success and replayed.disturbances
 
 
 def test_a_dropped_mic_is_picked_up_again_and_handed_over(tmp_path):
@@ -171,31 +152,38 @@ def test_a_dropped_mic_is_picked_up_again_and_handed_over(tmp_path):
     pick-and-place one): a mic slips out of the hand that carries it to the meeting point; the
     expert picks it up again, the handover and the rest of the task follow, and the replay
     reproduces every stage with the drop applied again."""
-    from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate
-
-    config = gen.GenerateConfig(
-        task="exchange_mics", seed=0, episodes=1, max_tries=1, render=False,
-        disturb="drop", out=str(tmp_path / "a"), workers=1,
-    )  # fmt: skip
-    summary = gen.generate(config)
-    assert summary.kept == 1, [f.reason for f in summary.failures]
-    episode = read_episode(summary.root / "data" / "episode0.hdf5", images=False)
-    (drop,) = dist.from_records(episode.disturbances)
+    root, episode, drop = dropped("exchange_mics", tmp_path / "a")
     ((start, end, subgoal, *_),) = episode.recovery
     assert start == drop.step < drop.end < end < episode.length
     assert subgoal.startswith(f"recover from the drop of {drop.body!r}")
     mic = episode.objects[drop.body]
     assert mic[drop.end + 5, 2] < mic[drop.step, 2]  # it fell (carried low: a cm or so)
     assert mic[end - 1, 2] > mic[drop.end + 5, 2] + 0.03  # and is lifted again
-    report = evaluate(
-        EvaluateConfig(
-            task="exchange_mics",
-            policy="replay",
-            episodes=1,
-            data=str(summary.root),
-            render=False,
-            workers=1,
-            out=str(tmp_path / "replay"),
-        )  # fmt: skip
-    )
-    assert report.rollouts[0].success and report.rollouts[0].disturbances
+    replayed = replay(root, "exchange_mics", tmp_path / "replay")
+    assert replayed.success and replayed.disturbances
+
+
+def replay(root, task: str, out):
+    """The replay of the one episode under `root` (``scripts/evaluate.py --policy replay``,
+    its recorded disturbances applied again): its rollout record."""
+    from bicoord_drake.runner.evaluate import EvaluateConfig, evaluate
+
+    config = EvaluateConfig(
+        task=task, policy="replay", episodes=1, data=str(root), render=False, workers=1,
+        out=str(out),
+    )  # fmt: skip
+    return evaluate(config).rollouts[0]
+
+
+def dropped(task: str, out):
+    """Seed 0 of `task` generated with ``disturb=drop`` into `out` (it must be kept): the
+    dataset's root, the episode and its one disturbance."""
+    config = gen.GenerateConfig(
+        task=task, seed=0, episodes=1, max_tries=1, render=False, disturb="drop",
+        out=str(out), workers=1,
+    )  # fmt: skip
+    summary = gen.generate(config)
+    assert summary.kept == 1, [f.reason for f in summary.failures]
+    episode = read_episode(summary.root / "data" / "episode0.hdf5", images=False)
+    (drop,) = dist.from_records(episode.disturbances)
+    return summary.root, episode, drop
