@@ -6,7 +6,8 @@ movement tests, the paper's and the jitter-free one, each column naming its test
 distance d0 and MRD, ARD in metres beside the ratios); STI curves, one panel per test; the
 episode-length histogram; for a few episodes per task a stage timeline (one bar per stage,
 coloured by which arm works under the jitter-free test, with each stage's shares under both
-tests; a disturbed episode's recovery segments as hatched bars of their own) and the first and last frame of every camera; one embedded video.
+tests; a disturbed episode's recovery segments as hatched bars of their own) and the first
+and last frame of every camera; one embedded video.
 """
 
 from __future__ import annotations
