@@ -19,7 +19,8 @@ Kinds (:data:`DISTURBANCE_KINDS`):
   boundary on, and ends :data:`SETTLE_SECONDS` before it: the expert measures the object where
   the push left it and plans from there.
 - ``drop``: the executed command of a gripper holding an object alone (not with the other
-  hand), lifted off its support and :data:`DROP_EDGE_MARGIN` inside the table's edge, opened
+  hand), just lifted off its support (at most :data:`DROP_HEIGHT` above where it lay at the
+  start) and :data:`DROP_EDGE_MARGIN` inside the table's edge, opened
   evenly to fully open over :data:`DROP_OPEN_SECONDS`, then held open to the end of
   :data:`DROP_SECONDS` (a grip that loosens, and lets go: fingers that closed again while the
   object still fell between them would pinch and fling it; the expert's command
@@ -78,8 +79,9 @@ PUSH_DISTANCE = (0.03, 0.05)
 SETTLE_SECONDS = 0.6
 #: How long a dropping gripper takes to open: its executed command rises evenly from closed
 #: to :data:`DROP_OPENING` over this time, or is the expert's where that is wider (a grip
-#: that loosens: a gripper snapped open flicks a squeezed small cube off the table).
-DROP_OPEN_SECONDS = 0.5
+#: that loosens: a gripper snapped open flicks a squeezed small cube off the table; over
+#: 0.5 s the arm lifted the cube on by up to 5 cm before it slipped out).
+DROP_OPEN_SECONDS = 0.25
 #: How long a drop acts: the opening, then the gripper held open while the object falls clear.
 DROP_SECONDS = 1.0
 #: The opening a dropping gripper is commanded (fully open).
@@ -87,6 +89,11 @@ DROP_OPENING = 1.0
 #: A drop fires only while its object is this far (m) inside the table's edge: what falls
 #: stays on the table, where the expert can pick it up again.
 DROP_EDGE_MARGIN = 0.12
+#: A drop starts only where its object is at most this high (m) above where it lay at the
+#: start (just lifted, or about to be set down): a cube let fall 5-7 cm onto the table top
+#: (the arm lifts on while the grip loosens) can rebound at 3 m/s, spinning at 70 rad/s, and
+#: leave the table (traced: build_tower_with_blocks seed 14), where no expert can pick it up.
+DROP_HEIGHT = 0.02
 #: A pushed object's predicted path (1.5 times its distance) stays this far inside the table's
 #: edge and this far from every other object's footprint.
 EDGE_MARGIN = 0.08
@@ -488,7 +495,8 @@ def _plan_drop(rng: np.random.Generator, trace: ExpertTrace, station: Station) -
             steps = [
                 s
                 for s in range(earliest, last - duration + 1)
-                if all(
+                if frames[s].poses[name][2] - frames[0].poses[name][2] <= DROP_HEIGHT
+                and all(
                     frames[t].fingers[name] == {side}
                     and not frames[t].touching[name]
                     and np.all(np.abs(frames[t].poses[name][:2]) <= inside)

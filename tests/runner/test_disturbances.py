@@ -203,6 +203,21 @@ def test_the_windows(jigsaw):
         plan_disturbances(("push",), 0, trace, station)
 
 
+def test_a_drop_starts_only_just_above_where_the_object_lay(jigsaw):
+    """A drop starts where its object is at most DROP_HEIGHT above its place at the start:
+    lifted higher at every step of its window, it has none."""
+    trace, station = synthetic_trace(jigsaw), jigsaw.station
+    low = plan_disturbances(("drop",), 0, trace, station)[0]
+    assert low.body == "spare_left_1"
+    for t in range(40, 80):
+        f = trace.frames[t]
+        raised = f.poses["spare_left_1"].copy()
+        raised[2] += dist.DROP_HEIGHT + 0.01
+        f.poses = {**f.poses, "spare_left_1": raised}
+    with pytest.raises(NoDisturbanceWindow, match="drop: no gripper"):
+        plan_disturbances(("drop",), 0, trace, station)
+
+
 def test_a_push_keeps_clear_of_the_table_edge_and_the_other_objects(jigsaw):
     """spare_left_0 stands at (-0.2, -0.2), 15 cm from the table's near edge and 10 cm from the
     grid's cells (4 cm squares): whatever the drawn angle, its predicted path (1.5 x 5 cm)
