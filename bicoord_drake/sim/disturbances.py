@@ -90,7 +90,7 @@ DROP_OPENING = 1.0
 #: stays on the table, where the expert can pick it up again.
 DROP_EDGE_MARGIN = 0.12
 #: A drop starts only where its object is at most this high (m) above where it lay at the
-#: start (just lifted, or about to be set down): a cube let fall 5-7 cm onto the table top
+#: start (just lifted off): a cube let fall 5-7 cm onto the table top
 #: (the arm lifts on while the grip loosens) can rebound at 3 m/s, spinning at 70 rad/s, and
 #: leave the table (traced: build_tower_with_blocks seed 14), where no expert can pick it up.
 DROP_HEIGHT = 0.02
