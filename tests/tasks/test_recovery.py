@@ -128,9 +128,9 @@ def test_a_cube_on_its_side_is_picked_up_as_if_upright():
 
 def test_a_dropped_cube_is_picked_up_again_recorded_and_replayed(tmp_path):
     """jigsaw seed 0 with ``disturb=drop``: the right grip loosens as it lifts its first
-    spare off the table (drops start at most DROP_HEIGHT up); at the next plan boundary the expert finds the cube on the table, picks it up
-    again and fills the grid; the recovery row spans the drop to the end of the new pick, and
-    the replay reproduces every stage."""
+    spare off the table (drops start at most DROP_HEIGHT up); at the next plan boundary the
+    expert finds the cube on the table, picks it up again and fills the grid; the recovery
+    row spans the drop to the end of the new pick, and the replay reproduces every stage."""
     root, episode, drop = dropped("jigsaw", tmp_path / "a")
     assert drop.kind == "drop" and drop.side == "right"
     ((start, end, subgoal, *_),) = episode.recovery
