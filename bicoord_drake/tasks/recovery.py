@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.models.embodiment import SIDES, other_side
 from bicoord_drake.planning.errors import PlanningError
 
 if TYPE_CHECKING:
@@ -227,12 +227,11 @@ def _pick(ctx: SkillContext, side: str, name: str):
 def _let_go(ctx: SkillContext, sides: list[str]) -> Iterator[np.ndarray]:
     """Open the hands of `sides` (gently, arms still): a hand whose grasp was lost still
     commands its grip, and would close on what slipped and jammed between its fingers."""
-    from bicoord_drake.models.embodiment import other_side
-    from bicoord_drake.planning.skills import combine, grip, hold
+    from bicoord_drake.planning.skills import grip
 
     for side in sides:
         opened = grip(ctx, side, 1.0, gentle=True, label="recover: let go")
-        yield from combine(*_arranged(side, opened, hold(ctx, other_side(side), 0))).actions()
+        yield from _alone(ctx, side, opened).actions()
 
 
 def _backed_off(ctx: SkillContext, run: Runner) -> Iterator[np.ndarray]:
@@ -243,19 +242,14 @@ def _backed_off(ctx: SkillContext, run: Runner) -> Iterator[np.ndarray]:
     the check (the hand moves away from them)."""
     from pydrake.all import RigidTransform
 
-    from bicoord_drake.models.embodiment import other_side
-    from bicoord_drake.planning.skills import combine, hold
     from bicoord_drake.planning.skills.tracking import track
 
     with ctx.model.padded(ctx.clearance, ctx.env_clearance):
         pairs = ctx.model.colliding_pairs(ctx.q)
     for side in SIDES:
         arm = f"{side}_arm/"
-        touched = {
-            b if a.startswith(arm) else a
-            for a, b, _ in pairs
-            if a.startswith(arm) != b.startswith(arm) and (a + b).count("_arm/") == 1
-        }
+        # (robot body, what it is too close to): the scene, not an arm
+        touched = {b for a, b, _ in pairs if a.startswith(arm) and "_arm/" not in b}
         if not touched:
             continue
         X = ctx.model.tcp_pose(ctx.q, side)
@@ -270,7 +264,7 @@ def _backed_off(ctx: SkillContext, run: Runner) -> Iterator[np.ndarray]:
         except PlanningError:
             objects = sorted(touched & {o.name for o in ctx.model.scene.objects})
             plan = track(ctx, side, up, BACK_OFF, 0.0, label="recover: back off", ignore=objects)
-        yield from run(combine(*_arranged(side, plan, hold(ctx, other_side(side), 0))))
+        yield from run(_alone(ctx, side, plan))
 
 
 def _pick_up(ctx: SkillContext, run: Runner, side: str, plan: Callable) -> Iterator[np.ndarray]:
@@ -282,7 +276,7 @@ def _pick_up(ctx: SkillContext, run: Runner, side: str, plan: Callable) -> Itera
         with ctx.transaction():
             motion = merge(ctx, *_arranged(side, plan()))
     except PlanningError as err:
-        other = next(s for s in SIDES if s != side)
+        other = other_side(side)
         home = ctx.model.home[ctx.model.side_slice(other)]
         if np.allclose(ctx.arm_q(other), home):
             raise
@@ -292,10 +286,18 @@ def _pick_up(ctx: SkillContext, run: Runner, side: str, plan: Callable) -> Itera
     yield from run(motion)
 
 
-def _arranged(side: str, plan, other=None):
-    """(left, right) for :func:`merge`: `plan` on its side, `other` (None: the other arm
-    holding) on the other."""
-    return (plan, other) if side == "left" else (other, plan)
+def _arranged(side: str, plan):
+    """(left, right) for :func:`merge`: `plan` on its side, the other arm holding."""
+    return (plan, None) if side == "left" else (None, plan)
+
+
+def _alone(ctx: SkillContext, side: str, plan) -> Motion:
+    """`plan` of `side` with the other arm holding where it stands, unchecked
+    (:func:`~bicoord_drake.planning.skills.combine`: for a plan made beside the other arm)."""
+    from bicoord_drake.planning.skills import combine, hold
+
+    other = hold(ctx, other_side(side), 0)
+    return combine(plan, other) if side == "left" else combine(other, plan)
 
 
 def _free_hand(ctx: SkillContext, side: str, name: str) -> str:
@@ -304,7 +306,7 @@ def _free_hand(ctx: SkillContext, side: str, name: str) -> str:
     held = ctx.model.held
     if side not in held:
         return side
-    other = next(s for s in SIDES if s != side)
+    other = other_side(side)
     if other not in held:
         return other
     raise PlanningError(
