@@ -286,9 +286,10 @@ def _pick_up(ctx: SkillContext, run: Runner, side: str, plan: Callable) -> Itera
     yield from run(motion)
 
 
-def _arranged(side: str, plan):
-    """(left, right) for :func:`merge`: `plan` on its side, the other arm holding."""
-    return (plan, None) if side == "left" else (None, plan)
+def _arranged(side: str, plan, other=None):
+    """(left, right): `plan` on its side, `other` on the other (None: that arm holding, for
+    :func:`merge`)."""
+    return (plan, other) if side == "left" else (other, plan)
 
 
 def _alone(ctx: SkillContext, side: str, plan) -> Motion:
@@ -296,8 +297,7 @@ def _alone(ctx: SkillContext, side: str, plan) -> Motion:
     (:func:`~bicoord_drake.planning.skills.combine`: for a plan made beside the other arm)."""
     from bicoord_drake.planning.skills import combine, hold
 
-    other = hold(ctx, other_side(side), 0)
-    return combine(plan, other) if side == "left" else combine(other, plan)
+    return combine(*_arranged(side, plan, hold(ctx, other_side(side), 0)))
 
 
 def _free_hand(ctx: SkillContext, side: str, name: str) -> str:
