@@ -227,24 +227,37 @@ def task_paths(task: str, args: argparse.Namespace) -> TaskPaths:
 
 
 # --------------------------------------------------------------------------- the commands
+def generation_command(
+    task: str,
+    out: Path,
+    *,
+    episodes: int,
+    seed: int = 0,
+    workers: int = 1,
+    max_tries: int | None = None,
+    action_noise: str | None = None,
+    disturb: tuple[str, ...] = (),
+) -> list[str]:
+    """scripts/generate.py without cameras: `episodes` kept demonstrations of `task` from
+    `seed` into `out`, with the given action noise and disturbances (none by default)."""
+    command = [sys.executable, "scripts/generate.py", "--task", task]
+    command += ["--episodes", str(episodes), "--seed", str(seed)]
+    if max_tries is not None:
+        command += ["--max-tries", str(max_tries)]
+    command += ["--no-render", "--workers", str(workers), "--out", str(out)]
+    if action_noise:
+        command += ["--action-noise", action_noise]
+    if disturb:
+        command += ["--disturb", ",".join(disturb)]
+    return command
+
+
 def generate_command(task: str, args: argparse.Namespace, paths: TaskPaths) -> list[str]:
     """scripts/generate.py: `args.demos` plain demonstrations from seed 0, no cameras."""
-    return [
-        sys.executable,
-        "scripts/generate.py",
-        "--task",
-        task,
-        "--episodes",
-        str(args.demos),
-        "--seed",
-        "0",
-        "--no-render",
-        "--workers",
-        "1",
-        "--out",
-        str(paths.data),
-        *(["--action-noise", f"{action_noise(args):g}"] if action_noise(args) else []),
-    ]
+    noise = action_noise(args)
+    return generation_command(
+        task, paths.data, episodes=args.demos, action_noise=f"{noise:g}" if noise else None
+    )
 
 
 def export_command(files: list[Path], paths: TaskPaths) -> list[str]:

@@ -360,28 +360,16 @@ def dataset_paths(task: str, dataset: str, args: argparse.Namespace) -> DatasetP
 def generate_command(task: str, gen: Generation, args: argparse.Namespace) -> list[str]:
     """scripts/generate.py for one set: ``--demos`` episodes from its seed, no cameras (with
     its action noise and disturbances for RECOVERY)."""
-    command = [
-        sys.executable,
-        "scripts/generate.py",
-        "--task",
+    return policy_reproduces.generation_command(
         task,
-        "--episodes",
-        str(args.demos),
-        "--seed",
-        str(gen.seed),
-        "--max-tries",
-        str(generation_tries(args)),
-        "--no-render",
-        "--workers",
-        str(args.workers),
-        "--out",
-        str(gen.data),
-    ]
-    if gen.noise != "0":
-        command += ["--action-noise", gen.noise]
-    if gen.disturb:
-        command += ["--disturb", ",".join(gen.disturb)]
-    return command
+        gen.data,
+        episodes=args.demos,
+        seed=gen.seed,
+        workers=args.workers,
+        max_tries=generation_tries(args),
+        action_noise=gen.noise if gen.noise != "0" else None,
+        disturb=tuple(gen.disturb),
+    )
 
 
 def export_sources(directory: Path, files: list[Path] | None) -> list[Path]:
