@@ -28,7 +28,7 @@ def measure(task_name: str, seed: int) -> dict:
     from bicoord_drake.sim.station import build_station
     from bicoord_drake.stages import StageMonitor, WorldState
     from bicoord_drake.tasks import get_task
-    from bicoord_drake.tasks.base import WorldView
+    from bicoord_drake.tasks.base import WorldView, expert_actions
 
     task = get_task(task_name)
     scene = task.sample_scene(seed)
@@ -68,7 +68,7 @@ def measure(task_name: str, seed: int) -> dict:
     action = st.embodiment.home_action()
     outcome = "kept"
     try:
-        for action in task.expert(scene, WorldView(sim)):
+        for action in expert_actions(task, scene, WorldView(sim)):
             if sim.steps >= task.step_limit:
                 outcome = "step_limit"
                 break

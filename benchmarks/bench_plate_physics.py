@@ -34,7 +34,7 @@ from bicoord_drake.models.scene import TABLE_TOP, Scene
 from bicoord_drake.sim.simulation import Simulation, build_station
 from bicoord_drake.stages import WorldState
 from bicoord_drake.tasks import place_plate_and_cup as ppc
-from bicoord_drake.tasks.base import WorldView
+from bicoord_drake.tasks.base import WorldView, expert_actions
 
 SEED = 0
 #: The models compared: walls standing on the base?, plate and cup hydroelastic mesh sizes.
@@ -87,7 +87,7 @@ def ready(model: str, which: str) -> tuple[Simulation, np.ndarray]:
     scene = task_scene(model)
     sim = Simulation(build_station(scene, config))
     lifted = task.stages(scene)[0].predicate  # a plate and a cup lifted together
-    for action in task.expert(scene, WorldView(sim)):
+    for action in expert_actions(task, scene, WorldView(sim)):
         sim.step(action)
         if lifted(WorldState.capture(sim, action, scene)) == 1:
             return sim, action

@@ -140,12 +140,15 @@ class PlanningModel:
         control_period: float = CONTROL_DT,
     ) -> None:
         """The model of `scene` (default: an empty table) with `embodiment`'s two arms (a
-        registered name or an :class:`Embodiment`; default: the default robot), planned for a
-        station stepped every `control_period` seconds (the plans' sample spacing)."""
+        registered name or an :class:`Embodiment`; default: the default robot), its plans
+        sampled every `control_period` seconds: the station's control period, or for an expert
+        below 15 Hz a k-th of it (:meth:`~bicoord_drake.tasks.base.WorldView.planning_model`,
+        :func:`~bicoord_drake.planning.timing.planning_substeps`)."""
         if not control_period > 0:
             raise ValueError(f"control_period must be > 0 s, got {control_period!r}")
         self.scene = scene or Scene()
-        #: Seconds between two control samples of every plan made on this model.
+        #: Seconds between two samples of every plan made on this model (the planning period;
+        #: the name is the control period's, which it is at 15 Hz and faster).
         self.control_period = float(control_period)
         if embodiment is None:
             embodiment = default_embodiment()

@@ -53,6 +53,9 @@ from bicoord_drake.planning.errors import PlanningError
 
 #: Default control period (15 Hz).
 CONTROL_DT = 1.0 / 15.0
+#: The longest planning period (s): the experts plan on this grid or a finer one, never a
+#: coarser one (:func:`planning_substeps`).
+MAX_PLANNING_PERIOD = CONTROL_DT
 #: Every straight segment of a timed path lasts a whole number of these (s), at any control
 #: rate: the reference rate's period, so a path lasts the same time at 10, 15, 30 or 50 Hz.
 #: Rounding each segment up to the control period instead made a path of many short segments
@@ -70,6 +73,23 @@ _GRID_TOL = 1e-9  # how far a duration may sit from the dt grid (s)
 _LIMIT_TOL = 1e-6  # relative slack when checking limits on samples
 
 State = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+def planning_substeps(control_period: float) -> int:
+    """k, the planned samples per control step: the smallest whole number with
+    ``control_period / k <= MAX_PLANNING_PERIOD`` (1/15 s). At 15 Hz and faster k = 1 (the
+    experts plan on the control grid); at 10 Hz k = 2 (they plan at 20 Hz), at 5 Hz 3, at 12 Hz
+    2 (24 Hz).
+
+    Why: every motion and every wait of a plan lasts a whole number of samples, rounded up, so
+    each of a demonstration's 30-60 plan boundaries adds half a sample period on average. On
+    the 10 Hz grid that made demonstrations 3-9 % longer than at 15 Hz
+    (benchmarks/rate_invariance.md). Planned on the finer grid and executed every k-th sample
+    on one clock carried across motions (:func:`bicoord_drake.tasks.base.expert_actions`),
+    only the episode's end is rounded to the control period."""
+    if not control_period > 0:
+        raise ValueError(f"control_period must be > 0 s, got {control_period!r}")
+    return max(1, int(np.ceil(control_period / MAX_PLANNING_PERIOD * (1.0 - 1e-9))))
 
 
 # --------------------------------------------------------------------------------------------

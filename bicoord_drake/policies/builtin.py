@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from bicoord_drake.models.embodiment import SIDES
+from bicoord_drake.tasks.base import expert_actions
 
 if TYPE_CHECKING:
     from bicoord_drake.env import Env
@@ -65,14 +66,16 @@ class ExpertPolicy:
     """The task's planning expert, run in closed loop on the environment's simulator.
 
     It plans from the true world state (privileged) and is only defined from the start of a task
-    (not from a stage reset). When its plan ends it holds the last action.
+    (not from a stage reset); it acts as the generator runs it
+    (:func:`~bicoord_drake.tasks.base.expert_actions`: below 15 Hz every k-th planned sample).
+    When its plan ends it holds the last action.
     """
 
     def bind(self, env: Env) -> None:
         _require_qpos(env, "expert")
         if env.start_stage:
             raise ValueError("the expert policy plans from the start of the task, not a stage")
-        self._plan: Iterator[np.ndarray] = env.task.expert(env.scene, env.world_view())
+        self._plan: Iterator[np.ndarray] = expert_actions(env.task, env.scene, env.world_view())
         self._hold = np.asarray(env.action, dtype=float)
         self._bound = True
 

@@ -86,7 +86,7 @@ from bicoord_drake.sim.disturbances import (
 from bicoord_drake.sim.frame_renderer import FrameRenderer
 from bicoord_drake.stages import WorldState
 from bicoord_drake.tasks import get_task
-from bicoord_drake.tasks.base import Task, WorldView, step_limit_at
+from bicoord_drake.tasks.base import Task, WorldView, expert_actions, step_limit_at
 
 
 def default_config_name(
@@ -527,7 +527,7 @@ def _simulate(
             tracer.reads = run.reads
     record_executed = noise is not None or any(d.kind == "drop" for d in schedule or ())
     try:
-        expert = iter(task.expert(scene, view))
+        expert = expert_actions(task, scene, view)
         while True:
             with clock("planning"):
                 next_action = next(expert, None)

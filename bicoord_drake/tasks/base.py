@@ -20,16 +20,19 @@ A task file reads top to bottom like its description::
 
         def sample_scene(self, seed): ...      # all randomness from default_rng(seed)
         def stages(self, scene): ...
-        def expert(self, scene, view): ...     # yields one action per control step
+        def expert(self, scene, view): ...     # yields one action per planned sample
 
 A task never touches HDF5 or the simulator directly: the runner steps the simulation with the
 expert's actions and the expert reads privileged state through a read-only :class:`WorldView`.
+Whatever drives an expert does it through :func:`expert_actions`: at 15 Hz and faster it is the
+expert's own stream; below 15 Hz the expert plans on a finer grid (k samples per control step,
+:func:`~bicoord_drake.planning.timing.planning_substeps`) and every k-th sample is executed.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
@@ -61,6 +64,10 @@ class WorldView:
 
     def __init__(self, sim: Simulation) -> None:
         self._sim = sim
+        #: Planned samples the expert has yielded so far, counted by :func:`expert_actions`
+        #: (0 when something else drives the expert): the stream index of its next sample,
+        #: which tells :func:`follow` which of them the station will execute.
+        self.plan_samples = 0
 
     @property
     def scene(self) -> Scene:
@@ -117,12 +124,22 @@ class WorldView:
         """Measured gripper openings per side (1 = open)."""
         return self.layout.openings(self.joint_state())
 
+    @property
+    def substeps(self) -> int:
+        """k, the expert's planned samples per control step: 1 at 15 Hz and faster, 2 at
+        10 Hz (:func:`~bicoord_drake.planning.timing.planning_substeps`)."""
+        from bicoord_drake.planning.timing import planning_substeps
+
+        return planning_substeps(self.config.control_period)
+
     def planning_model(self) -> PlanningModel:
-        """A new planning model of this scene, robot and control period (kinematics and
-        collision for the planners; an expert builds its skill context on it)."""
+        """A new planning model of this scene and robot, its plans sampled every control
+        period / :attr:`substeps` (kinematics and collision for the planners; an expert builds
+        its skill context on it): the control period at 15 Hz and faster, 1/20 s at 10 Hz."""
         from bicoord_drake.planning.model import PlanningModel
 
-        return PlanningModel(self.scene, self.embodiment, self.config.control_period)
+        period = self.config.control_period / self.substeps
+        return PlanningModel(self.scene, self.embodiment, period)
 
     def object_transforms(self) -> dict:
         """Every object's pose as a Drake ``RigidTransform`` X_WO (for ``SkillContext.sync``)."""
@@ -158,11 +175,17 @@ def follow(ctx: SkillContext, view: WorldView, motion: Motion) -> Iterator[np.nd
     and, if the motion had placed it, places it again before planning on
     (:mod:`bicoord_drake.tasks.recovery`).
 
-    An expert runs every motion through this, so each plan starts from what happened."""
+    An expert runs every motion through this, so each plan starts from what happened.
+
+    A motion with an ``anchor`` (a throw's release) is held at its start for as many samples
+    (fewer than ``view.substeps``) as put the anchor on a sample the station executes
+    (:func:`expert_actions` executes every k-th; at 15 Hz and faster every one: no hold)."""
     from functools import partial
 
     from bicoord_drake.tasks.recovery import carried_by, fallen, recover_drops
 
+    if motion.anchor is not None:
+        motion = anchored(motion, view.plan_samples, view.substeps)
     held, placed = carried_by(ctx, motion)
     placements = dict(ctx.placements)
     ctx.placements.clear()
@@ -174,6 +197,97 @@ def follow(ctx: SkillContext, view: WorldView, motion: Motion) -> Iterator[np.nd
         return
     ctx.sync(ctx.q, object_poses=poses)
     ctx.refresh_grasps(poses)
+
+
+def anchored(motion: Motion, plan_samples: int, k: int) -> Motion:
+    """`motion` held at its start for the fewest samples (0 to k - 1) that make its
+    ``anchor`` an executed sample, when the expert has yielded `plan_samples` samples before
+    it and every k-th is executed (samples k - 1, 2 k - 1, ...: :func:`execute_every`)."""
+    if motion.anchor is None:
+        return motion
+    # Motion sample i >= 1 is the expert's sample number plan_samples + i - 1.
+    return motion.delayed((k - 1 - (plan_samples + motion.anchor - 1)) % k)
+
+
+def expert_actions(task: Task, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
+    """The actions `task`'s expert commands, one per control step of `view`'s station: what
+    drives an expert (the generator, the expert policy) drives it through this.
+
+    The expert plans on a grid of k = ``view.substeps`` samples per control step (k = 1 at
+    15 Hz and faster: its actions pass unchanged, the same objects) and this executes every
+    k-th (:func:`execute_every`: one clock over the whole episode, each executed sample
+    reached at its planned time, so only the episode's end is rounded to the control period,
+    not every motion and wait), counting the samples in ``view.plan_samples`` (:func:`follow`
+    puts a throw's release on an executed sample with it). Where the expert reads `view`
+    after a skipped sample (a motion that ends on one), it sees the world as of the last
+    executed sample: up to k - 1 samples (less than a control period) behind its plan."""
+    counted = _counted(task.expert(scene, view), view)
+    if view.substeps == 1:
+        return counted
+    return execute_every(counted, view.substeps, view.layout.gripper_indices)
+
+
+def _counted(samples: Iterable[np.ndarray], view: WorldView) -> Iterator[np.ndarray]:
+    for sample in samples:
+        view.plan_samples += 1
+        yield sample
+
+
+def execute_every(
+    samples: Iterable[np.ndarray], k: int, grippers: Sequence[int] = ()
+) -> Iterator[np.ndarray]:
+    """Samples k - 1, 2 k - 1, 3 k - 1, ... of `samples` (planned actions, k per control
+    step: sample s is planned for (s + 1) / k control periods after the start, and control
+    step n reaches its action at n + 1 periods) and, if the last sample is not among them, the
+    last sample too (so the plan's final pose is commanded: the end is rounded up by less
+    than a period). k = 1: `samples` themselves.
+
+    The arm joints are the executed sample's. A gripper opening the plan reaches and leaves
+    between two executed samples (a short pulse) is not lost: each entry of `grippers` (the
+    action's opening indices) is the one of the samples since the previous executed one that
+    lies farthest from the opening executed before (at the start: from the first sample); on
+    a monotone ramp - every open and close of the skills - that is the executed sample's own.
+    If that changes the plan's last action, the last action follows it unchanged."""
+    if k < 1:
+        raise ValueError(f"k must be >= 1, got {k}")
+    if k == 1:
+        yield from samples
+        return
+    grippers = list(grippers)
+    previous: np.ndarray | None = None
+    window: list[np.ndarray] = []  # the samples since the previous executed one
+    sample = None
+    for i, sample in enumerate(samples):
+        window.append(sample)
+        if i % k == k - 1:
+            previous = _executed(window, previous, grippers)
+            window = []
+            yield previous
+    if window:  # the last sample was skipped
+        previous = _executed(window, previous, grippers)
+        yield previous
+    if previous is not None and previous is not sample and not np.array_equal(previous, sample):
+        yield sample  # the plan's last action, as planned
+
+
+def _executed(
+    window: list[np.ndarray], previous: np.ndarray | None, grippers: list[int]
+) -> np.ndarray:
+    """The action executed for `window` (the samples since `previous`, the last executed
+    action, None at the start): the window's last sample, each gripper entry the window's
+    farthest from `previous` (at the start: from the window's first; ties: the latest)."""
+    action = window[-1]
+    if not grippers or len(window) == 1:
+        return action
+    values = np.array([sample[grippers] for sample in window], dtype=float)
+    reference = values[0] if previous is None else np.asarray(previous, dtype=float)[grippers]
+    gap = np.abs(values - reference)
+    latest_max = len(window) - 1 - np.argmax(gap[::-1], axis=0)
+    if np.all(gap[latest_max, np.arange(len(grippers))] <= gap[-1]):
+        return action
+    action = np.array(action, dtype=float)
+    action[grippers] = values[latest_max, np.arange(len(grippers))]
+    return action
 
 
 class Task(ABC):
@@ -209,8 +323,10 @@ class Task(ABC):
 
     @abstractmethod
     def expert(self, scene: Scene, view: WorldView) -> Iterator[np.ndarray]:
-        """Yield one action per control step (``view.layout``: 14 numbers for the ViperX pair);
-        read state from `view` between yields.
+        """Yield one action per planned sample (``view.layout``: 14 numbers for the ViperX
+        pair), every ``ctx.dt`` seconds: one per control step at 15 Hz and faster, below 15 Hz
+        ``view.substeps`` per step, of which :func:`expert_actions` executes every k-th; read
+        state from `view` between yields.
 
         Raise :class:`bicoord_drake.planning.errors.PlanningError` when planning fails.
         """

@@ -218,6 +218,7 @@ def test_toss_plan_meets_the_contract():
     toss = sk.toss(ctx, "left", "right")
     info, dt = toss.info, ctx.dt
     r = info["release_index"]
+    assert toss.anchor == r  # below 15 Hz the expert executes the release sample
     # the release lies inside a constant-velocity coast around the release sample
     step = np.diff(toss.q[r - 1 : r + 3, :6], axis=0)
     assert np.allclose(step, step[0], atol=1e-9) and np.max(np.abs(step[0])) > 0.05

@@ -21,6 +21,7 @@ from bicoord_drake.planning.timing import (
     concatenate,
     gripper_schedule,
     opening_rate,
+    planning_substeps,
     rendezvous,
     stack_arms,
     synchronize,
@@ -378,3 +379,17 @@ def test_to_actions_layout_and_gripper_schedule(embodiment, limits):
     assert np.array_equal(actions[:, 13], (traj.times > 0.5).astype(float))
     still = TimedTrajectory.hold(traj.goal, 4).to_actions(0.5, 0.0)
     assert still.shape == (5, 14) and np.all(still[:, 6] == 0.5)
+
+
+@pytest.mark.parametrize(
+    "rate,k",
+    [(15, 1), (30, 1), (50, 1), (1000, 1), (10, 2), (7.5, 2), (12, 2), (14.9, 2), (5, 3), (1, 15)],
+)
+def test_planning_substeps_plan_no_coarser_than_15_hz(rate, k):
+    assert planning_substeps(1.0 / rate) == k
+    assert 1.0 / rate / k <= CONTROL_DT * (1 + 1e-9)
+
+
+def test_planning_substeps_need_a_positive_period():
+    with pytest.raises(ValueError):
+        planning_substeps(0.0)

@@ -1,8 +1,11 @@
-"""The core of the skills: plans on the control grid and the shared planning context.
+"""The core of the skills: plans on the planning grid and the shared planning context.
 
 Time is seconds: every duration a skill takes (a hold, a release, a delay) is in seconds and
-becomes a whole number of control periods of the planning model (:func:`periods`), so a plan
-looks the same at 10, 15 or 50 Hz and only its sampling changes.
+becomes a whole number of sample periods of the planning model (:func:`periods`), so a plan
+looks the same at 10, 15 or 50 Hz and only its sampling changes. The sample period is the
+station's control period at 15 Hz and faster, and a k-th of it below 15 Hz
+(:func:`~bicoord_drake.planning.timing.planning_substeps`: 1/20 s at 10 Hz), where every k-th
+sample is executed (:func:`~bicoord_drake.tasks.base.expert_actions`).
 
 :class:`ArmPlan` is one arm's motion (joint samples, a gripper-opening schedule, attach/detach
 events), :class:`Motion` both arms'. :class:`SkillContext` is what every skill plans from and
@@ -45,8 +48,8 @@ GRASP_LOST_DISTANCE = 0.02
 
 
 def periods(seconds: float, dt: float) -> int:
-    """The whole number of control periods `dt` nearest to `seconds` (>= 0): a duration's
-    length on the control grid (at most half a period off)."""
+    """The whole number of sample periods `dt` nearest to `seconds` (>= 0): a duration's
+    length on the planning grid (at most half a period off)."""
     if seconds < 0:
         raise ValueError(f"a duration must be >= 0 s, got {seconds}")
     return int(np.floor(seconds / dt + 0.5))
@@ -121,14 +124,21 @@ class ArmPlan:
 
 @dataclass
 class Motion:
-    """A two-arm motion on the control grid: q (N, 2 n) [left n, right n], openings (N, 2)
-    [left, right]."""
+    """A two-arm motion on the planning grid: q (N, 2 n) [left n, right n], openings (N, 2)
+    [left, right].
+
+    ``anchor``: a sample that must be executed at a control step (a throw's release: the
+    fingers start opening there). Below 15 Hz only every k-th planned sample is executed
+    (:func:`~bicoord_drake.planning.timing.planning_substeps`); the expert's
+    :func:`~bicoord_drake.tasks.base.follow` then holds the motion's start for up to k - 1
+    samples so that the anchor is one of them. None: any phase will do."""
 
     q: np.ndarray
     openings: np.ndarray
     events: list[tuple[int, str, str, str]] = field(default_factory=list)  # (i, side, kind, obj)
     label: str = ""
     info: dict[str, Any] = field(default_factory=dict)  # skill-specific plan data
+    anchor: int | None = None
 
     @property
     def num_steps(self) -> int:
@@ -136,17 +146,36 @@ class Motion:
 
     def then(self, other: Motion) -> Motion:
         """This motion followed by `other` (which must start where this one ends). Events are
-        re-indexed; ``info`` is merged as is (the later motion's keys win)."""
+        re-indexed; ``info`` is merged as is (the later motion's keys win); the anchor is
+        this motion's, else `other`'s (re-indexed)."""
         if np.max(np.abs(other.q[0] - self.q[-1])) > 1e-6:
             raise ValueError(f"motion {other.label!r} does not start where the previous ends")
         n = self.num_steps - 1
         events = self.events + [(i + n, side, k, o) for i, side, k, o in other.events]
+        anchor = self.anchor
+        if anchor is None and other.anchor is not None:
+            anchor = other.anchor + n
         return Motion(
             np.vstack([self.q, other.q[1:]]),
             np.vstack([self.openings, other.openings[1:]]),
             events,
             f"{self.label}; {other.label}",
             {**self.info, **other.info},
+            anchor,
+        )
+
+    def delayed(self, samples: int) -> Motion:
+        """The same motion after holding its first sample for `samples` more samples (events
+        and the anchor move with it; ``info`` is kept as is)."""
+        if samples <= 0:
+            return self
+        return Motion(
+            np.vstack([np.repeat(self.q[:1], samples, 0), self.q]),
+            np.vstack([np.repeat(self.openings[:1], samples, 0), self.openings]),
+            [(i + samples, side, k, o) for i, side, k, o in self.events],
+            self.label,
+            self.info,
+            None if self.anchor is None else self.anchor + samples,
         )
 
     def actions(self) -> np.ndarray:
@@ -167,8 +196,13 @@ class SkillContext:
     """The state skills plan from and advance, for both arms of a :class:`PlanningModel`.
 
     `speed` scales the embodiment's joint velocity limits (accelerations by speed^2, jerks by
-    speed^3). Plans are sampled every ``dt`` seconds: the model's control period unless
-    given. The tracked state (joint angles ``q``, commanded ``opening`` per side, held
+    speed^3). Plans are sampled every ``dt`` seconds: the planning model's ``control_period``
+    unless given. For an expert that is the planning period of
+    :meth:`~bicoord_drake.tasks.base.WorldView.planning_model`: the station's control period at
+    15 Hz and faster, a k-th of it below 15 Hz (k from
+    :func:`~bicoord_drake.planning.timing.planning_substeps`; 1/20 s at 10 Hz), of which every
+    k-th sample is executed. Every duration a skill takes is a whole number of ``dt``. The
+    tracked state (joint angles ``q``, commanded ``opening`` per side, held
     objects in ``model``) advances as skills are planned; call :meth:`sync` with measured values
     before planning from a new situation.
     """
@@ -184,6 +218,7 @@ class SkillContext:
     ) -> None:
         self.model = model
         self.ik = BimanualIK(model)
+        #: Seconds between two planned samples (see the class docstring).
         self.dt = dt = model.control_period if dt is None else float(dt)
         self.clearance = clearance
         self.env_clearance = env_clearance
@@ -212,7 +247,7 @@ class SkillContext:
         self.picker: Callable[[str, str], ArmPlan] | None = None
 
     def steps(self, seconds: float) -> int:
-        """Control periods that `seconds` last on this context's grid (:func:`periods`)."""
+        """Sample periods that `seconds` last on this context's grid (:func:`periods`)."""
         return periods(seconds, self.dt)
 
     # ------------------------------------------------------------------ state

@@ -84,7 +84,9 @@ def toss(
     what is already in it), and is there `margin` s before the object reaches the rim
     (:func:`~bicoord_drake.planning.throwing.throw_and_catch`). The flight is checked against
     both arms. ``info`` holds the predicted release, rim crossing and landing (motion sample
-    indices and seconds from the motion's start). On failure nothing is changed.
+    indices and seconds from the motion's start); its ``anchor`` is the release sample, which
+    an expert below 15 Hz executes (:func:`~bicoord_drake.tasks.base.follow`). On failure
+    nothing is changed.
 
     A box is turned on the way to the release so that its long side lies across the flight
     (`long_axis` "across": landing end first, it would pivot up onto its end) or, for a short
@@ -226,6 +228,11 @@ def _toss(
     ctx.q = motion.q[-1].copy()
     ctx.opening[thrower] = 1.0
     motion.label = f"toss {name} {thrower}->{catcher}"
+    # The fingers start opening at the release sample: below 15 Hz, where only every k-th
+    # planned sample is executed, the expert holds the motion's start until it is one
+    # (Motion.anchor), so the opening starts on time as at 15 Hz rather than up to a control
+    # period early (the station's interpolation from the executed sample before it) or late.
+    motion.anchor = i_rel
     motion.info.update(
         release_index=offset + r,
         release_time=(offset + r) * ctx.dt + RELEASE_DELAY,
