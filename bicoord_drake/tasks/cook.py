@@ -509,7 +509,8 @@ class Cook(Task):
             try:
                 with ctx.transaction():
                     again = _serve_again(ctx, plate)
-                    if view.steps + again.num_steps + ctx.steps(SERVE_RESERVE) > limit:
+                    planned = again.num_steps + ctx.steps(SERVE_RESERVE)  # plan samples
+                    if view.steps + -(-planned // view.substeps) > limit:
                         raise PlanningError("step_limit", "no time left for another serve")
             except PlanningError:
                 break  # as before: the episode ends with the roll in the pan
