@@ -373,11 +373,11 @@ def run_expert(
 
 
 def recovery_end(d: Disturbance, reads: set[int], recovered: set[int], frames: int) -> int:
-    """The frame a recovery from `d` ends at: for a drop, the first step after it at which
-    the expert finished picking up (and re-placing) what fell, if it had to; otherwise, and
-    for pushes and knocks, the first step after it at which the expert read the measured
-    world to plan on (`frames`, the episode's length, at most)."""
-    done = [b for b in recovered if b >= d.end] if d.kind == "drop" else []
+    """The frame a recovery from `d` ends at: for a drop or a knock, the first step after it
+    at which the expert finished picking up (and re-placing) what fell or was knocked away, if
+    it had to; otherwise, and for pushes, the first step after it at which the expert read the
+    measured world to plan on (`frames`, the episode's length, at most)."""
+    done = [b for b in recovered if b >= d.end] if d.kind in ("drop", "knock") else []
     end = min(done or [b for b in reads if b >= d.end], default=frames)
     return min(end, frames)
 

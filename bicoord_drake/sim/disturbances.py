@@ -26,9 +26,13 @@ Kinds (:data:`DISTURBANCE_KINDS`):
   object still fell between them would pinch and fling it; the expert's command
   stays the label, what ran is the episode's ``joint_action/executed``), with a plan boundary
   after it. The expert picks the object up again (:mod:`bicoord_drake.tasks.recovery`).
-- ``knock``: a push on an object the expert placed (held, then released and at rest), with a
-  plan boundary after it; its path is checked against the table's edge only (a knock may
-  topple it onto its neighbours).
+- ``knock``: a push on an object the expert placed (held, then released and at rest on the
+  table or a fixture alone: not on another object, not in a drawer), clear of the table's
+  edge and the other free objects (a fixture, such as the marker it was set down on, may be
+  in its way), that slides without tipping over as friction stops it
+  (:func:`topples_when_slid`: a block standing on its end is not knocked), with a plan
+  boundary after it at which one of the expert's hands is free. An object the expert set
+  down on the table top it places again (:func:`~bicoord_drake.tasks.recovery.knocked`).
 
 The force is horizontal, of a magnitude that slides the object :data:`PUSH_DISTANCE` on its
 support: from the object's mass and the combined friction coefficient of its and the table's
@@ -391,6 +395,17 @@ def _free_on_support(f: FrameFacts, name: str, fixtures: set[str]) -> bool:
     )
 
 
+def _hand_free_at(frames: list[FrameFacts], boundaries: Sequence[int], step: int) -> bool:
+    """Whether at the expert's first plan boundary from `step` on one hand holds nothing (its
+    fingers touch no object): a hand that can put a knocked object back."""
+    later = [b for b in boundaries if step <= b < len(frames)]
+    if not later:
+        return False
+    f = frames[later[0]]
+    holding = set().union(*f.fingers.values()) if f.fingers else set()
+    return len(holding) < 2
+
+
 def _candidates(scene) -> list[str]:
     """The task's free objects (no fixtures, no sliding parts, no distractors)."""
     return [o.name for o in scene.free_objects if o.slide is None]
@@ -448,6 +463,7 @@ def _plan_knock(rng: np.random.Generator, trace: ExpertTrace, station: Station) 
     distance = float(rng.uniform(*PUSH_DISTANCE))
     angle = float(rng.uniform(0.0, 2 * math.pi))
     u = float(rng.random())
+    fixtures = {o.name for o in station.scene.objects if o.fixed}
     knocks = []
     for name in _candidates(station.scene):
         held = [t for t, f in enumerate(frames) if f.fingers[name]]
@@ -457,20 +473,21 @@ def _plan_knock(rng: np.random.Generator, trace: ExpertTrace, station: Station) 
         steps = [
             s
             for s in range(released + settle, last - duration - settle + 1)
-            if all(
-                not frames[t].robot[name] and frames[t].speeds[name] < REST_SPEED
-                for t in range(s, s + duration + 1)
-            )
+            if all(_free_on_support(frames[t], name, fixtures) for t in range(s, s + duration + 1))
+            and _hand_free_at(frames, trace.boundaries, s + duration)
         ]
         if not steps:
             continue
         f = frames[steps[0]]
-        force = slide_push(station, name, f.poses, distance, angle, f.poses)  # into anything
-        if force is not None:
+        # clear of the other free objects; a fixture (a marker it was set down on) may be
+        # in the way: the object slides off it, or stops against it
+        force = slide_push(station, name, f.poses, distance, angle, {*f.touching[name], *fixtures})
+        if force is not None and not topples_when_slid(station, name, f.poses[name], force[0]):
             knocks.append((name, steps, force))
     if not knocks:
         raise NoDisturbanceWindow(
-            "knock: no object the expert placed rests untouched with a plan boundary after it"
+            "knock: no object the expert placed rests alone on its support, with room to "
+            "slide and a plan boundary after it"
         )
     name, steps, (force, point) = knocks[int(rng.integers(len(knocks)))]
     step = steps[min(int(u * len(steps)), len(steps) - 1)]
@@ -646,6 +663,28 @@ def slide_push(
         force = k * mu * float(body.default_mass()) * GRAVITY * unit
         return _triple(force), _triple(R.T @ (point_W - pose[:3]))
     return None
+
+
+def topples_when_slid(
+    station: Station, name: str, pose: np.ndarray, direction: Sequence[float]
+) -> bool:
+    """Whether object `name`, standing at `pose` (7,) and sliding along `direction`, tips over
+    its leading edge as friction brakes it: the friction at its base turns it forward with the
+    moment ``mu m g h`` (h: its centre of mass above the table), which its weight holds only
+    while ``mu h`` stays within the leading edge's distance from the centre of mass. A 12 cm
+    block standing on a 4 cm end tips (0.85 x 6 cm against 2 cm); a 4 cm cube does not (1.7
+    against 2 cm)."""
+    from bicoord_drake.models.scene import TABLE_TOP
+
+    pose = np.asarray(pose, dtype=float)
+    R = _rotation(pose[3:])
+    unit = np.asarray(direction, dtype=float)
+    unit = unit / np.linalg.norm(unit)
+    com_B = np.asarray(station.object_bodies[name].default_com(), dtype=float)
+    com_W = pose[:3] + R @ com_B
+    height = com_W[2] - max(pose[2] - _extent(station, name, R, (0, 0, -1)), TABLE_TOP)
+    lead = _extent(station, name, R, unit) - float((R @ com_B) @ unit)
+    return combined_friction(station, name) * height > lead
 
 
 def _rotation(wxyz: np.ndarray) -> np.ndarray:

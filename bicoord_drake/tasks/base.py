@@ -172,7 +172,8 @@ def follow(ctx: SkillContext, view: WorldView, motion: Motion) -> Iterator[np.nd
 
     Where the measured world shows that an object the motion carried fell on the way (out of
     its hand, or resting far from where the motion set it down), the expert picks it up again
-    and, if the motion had placed it, places it again before planning on
+    and, if the motion had placed it, places it again before planning on; an object it set
+    down on the table earlier and finds knocked away, it places again where it can
     (:mod:`bicoord_drake.tasks.recovery`).
 
     An expert runs every motion through this, so each plan starts from what happened.
@@ -182,7 +183,13 @@ def follow(ctx: SkillContext, view: WorldView, motion: Motion) -> Iterator[np.nd
     (:func:`expert_actions` executes every k-th; at 15 Hz and faster every one: no hold)."""
     from functools import partial
 
-    from bicoord_drake.tasks.recovery import carried_by, fallen, recover_drops
+    from bicoord_drake.tasks.recovery import (
+        carried_by,
+        fallen,
+        knocked,
+        recover_drops,
+        recover_knocks,
+    )
 
     if motion.anchor is not None:
         motion = anchored(motion, view.plan_samples, view.substeps)
@@ -192,8 +199,14 @@ def follow(ctx: SkillContext, view: WorldView, motion: Motion) -> Iterator[np.nd
     yield from motion.actions()
     poses = view.object_transforms()
     lost, missed = fallen(ctx, poses, held, placed, placements)
-    if lost or missed:
-        yield from recover_drops(ctx, view, partial(follow, ctx, view), lost, missed, placements)
+    knocks = knocked(ctx, poses, motion, placed, placements)
+    run = partial(follow, ctx, view)
+    if knocks and not lost:
+        # the knocked objects first: what the motion set down on one may have missed it
+        yield from recover_knocks(ctx, view, run, knocks, missed, placements)
+        return
+    if lost or missed:  # (a knock found now is found again where this recovery ends)
+        yield from recover_drops(ctx, view, run, lost, missed, placements)
         return
     ctx.sync(ctx.q, object_poses=poses)
     ctx.refresh_grasps(poses)

@@ -1,5 +1,6 @@
-"""Getting back on track after a drop: what an expert does at a plan boundary when an object
-it carried is not where its plan put it (issue #54's recovery demonstrations).
+"""Getting back on track after a drop or a knock: what an expert does at a plan boundary when
+an object it carried or set down is not where its plan put it (issue #54's recovery
+demonstrations).
 
 :func:`~bicoord_drake.tasks.base.follow` calls :func:`recover_drops` after every motion, with
 the objects the motion was planned to leave in a hand or set down by :func:`~bicoord_drake.
@@ -14,7 +15,12 @@ planning.skills.place` (:func:`carried_by`). From the measured world it finds
   4 cm plus the object's own reach: an object let go in a holder may tip that far and still be
   where it was put): it fell on the way. A free hand picks it up and the placement is done
   again, with the same goal and settings (``SkillContext.placements``). An object let fall
-  into a container (``drop_into``) has no placement to compare with.
+  into a container (``drop_into``) has no placement to compare with;
+- a *knock*: an object an earlier motion set down on the table top (``SkillContext.settled``)
+  and that no motion has handled since lies more than :data:`KNOCKED_DISTANCE` from where it
+  came to rest: it is picked up and placed again as a missed placement, before what the
+  motion itself set down (on it, perhaps) is checked (:func:`knocked`,
+  :func:`recover_knocks`).
 
 Before picking, the expert holds both arms still until the fallen object is at rest
 (:data:`REST_SPEED`, at most :data:`REST_WAIT` seconds). Nothing here acts in an undisturbed
@@ -55,6 +61,9 @@ MISSED_ON_TABLE = 0.02
 #: planned before the expert takes it for fallen: a clean placement lands within a few mm, a
 #: drop on the way a hand's width or more away.
 MISSED_PLACEMENT = 0.04
+#: How far (m) an object the expert set down on the table top may move, with no plan of the
+#: robot handling it, before the expert takes it for knocked away from where it came to rest.
+KNOCKED_DISTANCE = 0.02
 #: Speed (m/s) under which a fallen object counts as at rest, ready to be picked.
 REST_SPEED = 0.01
 #: Longest wait (s) for a fallen object to come to rest before it is picked anyway.
@@ -111,16 +120,49 @@ def fallen(
     return lost, missed
 
 
+def knocked(
+    ctx: SkillContext,
+    measured: dict[str, RigidTransform],
+    motion: Motion,
+    placed: dict[str, str],
+    placements: dict[str, Placement],
+) -> list[tuple[str, str]]:
+    """The objects knocked away (``(side that set it down, object)``): set down on the table
+    top by an earlier motion (``SkillContext.settled``), not handled by `motion`, and now
+    farther than :data:`KNOCKED_DISTANCE` from where they came to rest. Brings
+    ``SkillContext.settled`` up to date first: what `motion` picked up or set down leaves it;
+    what it set down on the table top (`placed`, whose goals `placements` has) joins it, at
+    its measured pose."""
+    handled = {name for *_, name in motion.events}
+    for name in handled:
+        ctx.settled.pop(name, None)
+    out = [
+        (side, name)
+        for name, (side, _, X_rest) in ctx.settled.items()
+        if name in measured
+        and np.linalg.norm(measured[name].translation() - X_rest.translation()) > KNOCKED_DISTANCE
+    ]
+    for name, side in placed.items():
+        goal = placements[name].X_WO_goal
+        if name in measured and _on_table_top(ctx.model.object(name).shape, goal):
+            ctx.settled[name] = (side, placements[name], measured[name])
+    return out
+
+
+def _on_table_top(shape, X_WO_goal: RigidTransform) -> bool:
+    """Whether a placement's goal stands the object on the table top itself."""
+    from bicoord_drake.models.scene import TABLE_TOP
+    from bicoord_drake.planning.grasps import bottom_offset
+
+    return abs(X_WO_goal.translation()[2] - bottom_offset(shape) - TABLE_TOP) < 0.01
+
+
 def missed_distance(shape, X_WO_goal: RigidTransform) -> float:
     """How far (m) from its placement's goal an object may rest and still count as set down
     there: :data:`MISSED_ON_TABLE` for a goal on the table top (it lands within a few mm),
     otherwise :data:`MISSED_PLACEMENT` plus the object's :func:`reach` (set into a holder or
     onto another object, it may tip or slide by about that much)."""
-    from bicoord_drake.models.scene import TABLE_TOP
-    from bicoord_drake.planning.grasps import bottom_offset
-
-    bottom = X_WO_goal.translation()[2] - bottom_offset(shape)
-    if abs(bottom - TABLE_TOP) < 0.01:
+    if _on_table_top(shape, X_WO_goal):
         return MISSED_ON_TABLE
     return MISSED_PLACEMENT + reach(shape)
 
@@ -176,6 +218,29 @@ def recover_drops(
 
         yield from _pick_up(ctx, run, hand, again)
     view.note_recovered()
+
+
+def recover_knocks(
+    ctx: SkillContext,
+    view: WorldView,
+    run: Runner,
+    knocks: list[tuple[str, str]],
+    missed: list[tuple[str, str]],
+    placements: dict[str, Placement],
+) -> Iterator[np.ndarray]:
+    """Pick up each knocked object (:func:`knocked`) and place it again, then each of the
+    motion's `missed` placements (what was set down on a knocked object), as
+    :func:`recover_drops` does; `placements` has the missed ones' goals. Where that cannot be
+    planned (no free hand, no grasp of it as it lies), the expert carries on without them:
+    whether the task is still done is the stage monitor's to say."""
+    goals = {**placements, **{name: ctx.settled.pop(name)[1] for _, name in knocks}}
+    try:
+        yield from recover_drops(ctx, view, run, [], knocks + missed, goals)
+    except PlanningError as err:
+        LOG.info("%s; the expert carries on without it", err)
+        poses = view.object_transforms()
+        ctx.sync(ctx.q, object_poses=poses)
+        ctx.refresh_grasps(poses)
 
 
 def resting_frame(shape, X_WB: RigidTransform) -> RigidTransform | None:

@@ -218,6 +218,34 @@ def test_a_drop_starts_only_just_above_where_the_object_lay(jigsaw):
         plan_disturbances(("drop",), 0, trace, station)
 
 
+def test_a_knock_falls_on_a_placed_object_resting_alone(jigsaw):
+    """A knock needs its placed object alone on its support: one set down on another object
+    (or in a drawer) is never knocked; with none left, the seed has no knock window."""
+    trace, station = synthetic_trace(jigsaw), jigsaw.station
+    for f in trace.frames[95:]:
+        f.touching["spare_right_1"] = frozenset({dist.SUPPORT, "spare_left_1"})
+    bodies = {plan_disturbances(("knock",), s, trace, station)[0].body for s in range(10)}
+    assert bodies == {"spare_left_1"}
+    for f in trace.frames[90:]:
+        f.touching["spare_left_1"] = frozenset({"spare_right_1"})
+    with pytest.raises(NoDisturbanceWindow, match="knock: no object"):
+        plan_disturbances(("knock",), 0, trace, station)
+
+
+def test_a_knock_leaves_out_what_would_tip_over_as_it_slides(jigsaw, monkeypatch):
+    """A 4 cm cube sliding on the table (combined friction 0.85) stops on its face: friction's
+    moment (0.85 x 2 cm) stays inside its leading edge (2 cm, 2.8 cm along a diagonal); at a
+    friction of 1.5 it would tip (3 cm), whichever way it slides."""
+    pose = np.asarray(jigsaw.sim.object_poses()["spare_left_0"])
+    directions = [(1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.7, 0.7, 0.0)]
+    assert dist.combined_friction(jigsaw.station, "spare_left_0") == pytest.approx(0.847, abs=1e-3)
+    assert not any(
+        dist.topples_when_slid(jigsaw.station, "spare_left_0", pose, u) for u in directions
+    )
+    monkeypatch.setattr(dist, "combined_friction", lambda station, name: 1.5)
+    assert all(dist.topples_when_slid(jigsaw.station, "spare_left_0", pose, u) for u in directions)
+
+
 def test_a_push_keeps_clear_of_the_table_edge_and_the_other_objects(jigsaw):
     """spare_left_0 stands at (-0.2, -0.2), 15 cm from the table's near edge and 10 cm from the
     grid's cells (4 cm squares): whatever the drawn angle, its predicted path (1.5 x 5 cm)
@@ -418,3 +446,18 @@ def test_a_pushed_episode_is_kept_recorded_and_replayed(tmp_path):
     assert "bit for bit" in gen.compare_regenerated(episode.path, root, 0)
     made = read_episode(root / "data" / "episode0.hdf5", images=False)
     assert made.disturbances == episode.disturbances
+
+
+@pytest.mark.parametrize(
+    ("kind", "end"),
+    [("push", 30), ("drop", 80), ("knock", 80)],
+)
+def test_a_recovery_row_ends_where_the_expert_put_things_back(kind, end):
+    """A push's recovery ends at the expert's next read of the world (step 30); a drop's and a
+    knock's where the expert noted that it had picked up and placed again what fell or was
+    knocked away (step 80), not at an earlier note or read; never past the episode."""
+    force = (1.0, 0.0, 0.0) if kind != "drop" else (0.0, 0.0, 0.0)
+    side = {"side": "left"} if kind == "drop" else {}
+    d = Disturbance(kind=kind, step=20, duration=3, body="cube", force=force, **side)
+    assert gen.recovery_end(d, reads={10, 30, 60}, recovered={15, 80}, frames=200) == end
+    assert gen.recovery_end(d, reads={10, 30, 60}, recovered={15, 80}, frames=50) == min(end, 50)

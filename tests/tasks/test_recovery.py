@@ -22,10 +22,12 @@ from bicoord_drake.planning.skills import merge, pick, place
 from bicoord_drake.runner import generate as gen
 from bicoord_drake.sim import disturbances as dist
 from bicoord_drake.tasks.recovery import (
+    KNOCKED_DISTANCE,
     MISSED_ON_TABLE,
     MISSED_PLACEMENT,
     carried_by,
     fallen,
+    knocked,
     missed_distance,
     reach,
     resting_frame,
@@ -94,6 +96,32 @@ def test_a_cube_out_of_its_hand_and_a_missed_placement_are_fallen(planned):
     tipped = RigidTransform(goal.translation() + [far - 0.005, 0.0, 0.0])
     measured = as_measured(ctx, spare_right_1=tipped)
     assert fallen(ctx, measured, held, placed, dict(ctx.placements)) == ([], [])
+
+
+def test_a_cube_set_down_earlier_and_moved_since_is_knocked(planned):
+    """What a motion sets down on the table top is watched from then on (where it came to
+    rest): moved more than KNOCKED_DISTANCE by the next boundary, with no plan handling it,
+    it was knocked; a few mm is not; once a plan picks it up it is no longer watched."""
+    ctx, motion, goal = planned
+    held, placed = carried_by(ctx, motion)
+    measured = as_measured(ctx)
+    assert knocked(ctx, measured, motion, placed, dict(ctx.placements)) == []
+    side, placement, X_rest = ctx.settled["spare_right_1"]
+    assert side == "right" and placement.X_WO_goal.IsExactlyEqualTo(goal)
+    assert "spare_left_1" not in ctx.settled  # held, not set down
+    still = merge(ctx, None, None)  # the next motion handles neither cube
+
+    def moved_by(dx: float) -> dict[str, RigidTransform]:
+        X = RigidTransform(X_rest.rotation(), X_rest.translation() + [dx, 0.0, 0.0])
+        return as_measured(ctx, spare_right_1=X)
+
+    assert knocked(ctx, moved_by(0.005), still, {}, {}) == []
+    assert knocked(ctx, moved_by(KNOCKED_DISTANCE + 0.01), still, {}, {}) == [
+        ("right", "spare_right_1")
+    ]
+    again = pick(ctx, "right", "spare_right_1")  # picked up: no longer watched
+    assert knocked(ctx, moved_by(0.1), merge(ctx, None, again), {}, {}) == []
+    assert "spare_right_1" not in ctx.settled
 
 
 def test_off_the_table_a_placement_may_land_farther_from_its_goal():

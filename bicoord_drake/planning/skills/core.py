@@ -237,6 +237,10 @@ class SkillContext:
         #: records it), so an expert that finds it fallen on the way can place it again
         #: (:mod:`bicoord_drake.tasks.recovery`).
         self.placements: dict[str, Any] = {}
+        #: object -> (side that set it down, its placement, the measured pose it came to rest
+        #: at): what the expert set down on the table top and has not picked up since, so it
+        #: can place again what was knocked away (:func:`~bicoord_drake.tasks.recovery.knocked`).
+        self.settled: dict[str, tuple[str, Any, RigidTransform]] = {}
         #: object -> the frame the model gives it in its body's frame (a shape symmetry: a
         #: cube picked up again after it fell on another face); measured poses are turned
         #: into it (:meth:`modelled`). Empty: the model's frames are the bodies'.
