@@ -31,7 +31,8 @@ Kinds (:data:`DISTURBANCE_KINDS`):
   edge and the other free objects (a fixture, such as the marker it was set down on, may be
   in its way), that slides without tipping over as friction stops it
   (:func:`topples_when_slid`: a block standing on its end is not knocked), with a plan
-  boundary after it at which one of the expert's hands is free. An object the expert set
+  boundary after it at which one of the expert's hands is free and before which nothing is set
+  on it (:func:`_knock_fits`). An object the expert set
   down on the table top it places again (:func:`~bicoord_drake.tasks.recovery.knocked`).
 
 The force is horizontal, of a magnitude that slides the object :data:`PUSH_DISTANCE` on its
@@ -395,14 +396,26 @@ def _free_on_support(f: FrameFacts, name: str, fixtures: set[str]) -> bool:
     )
 
 
-def _hand_free_at(frames: list[FrameFacts], boundaries: Sequence[int], step: int) -> bool:
-    """Whether at the expert's first plan boundary from `step` on one hand holds nothing (its
-    fingers touch no object): a hand that can put a knocked object back."""
-    later = [b for b in boundaries if step <= b < len(frames)]
+def _knock_fits(
+    frames: list[FrameFacts],
+    boundaries: Sequence[int],
+    name: str,
+    fixtures: set[str],
+    step: int,
+    duration: int,
+) -> bool:
+    """Whether a knock on `name` may start at `step`: the clean run shows it resting alone on
+    its support from then until the expert's first plan boundary after the knock (nothing is
+    set on it or against it before the expert can see that it moved: what the motion under way
+    stacks on it would land where it stood), and one hand holding nothing at that boundary (a
+    hand that can put it back)."""
+    later = [b for b in boundaries if step + duration <= b < len(frames)]
     if not later:
         return False
-    f = frames[later[0]]
-    holding = set().union(*f.fingers.values()) if f.fingers else set()
+    boundary = later[0]
+    if not all(_free_on_support(frames[t], name, fixtures) for t in range(step, boundary + 1)):
+        return False
+    holding = set().union(*frames[boundary].fingers.values())
     return len(holding) < 2
 
 
@@ -473,8 +486,7 @@ def _plan_knock(rng: np.random.Generator, trace: ExpertTrace, station: Station) 
         steps = [
             s
             for s in range(released + settle, last - duration - settle + 1)
-            if all(_free_on_support(frames[t], name, fixtures) for t in range(s, s + duration + 1))
-            and _hand_free_at(frames, trace.boundaries, s + duration)
+            if _knock_fits(frames, trace.boundaries, name, fixtures, s, duration)
         ]
         if not steps:
             continue
