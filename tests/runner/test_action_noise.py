@@ -89,7 +89,8 @@ def test_a_noisy_run_records_its_setting_and_gets_its_own_directory():
     assert Scenario.model_validate(config.scenario.to_dict()) == config.scenario
 
 
-def test_the_command_line_flag(capsys):
+def generate_main():
+    """scripts/generate.py's main."""
     import importlib.util
     from pathlib import Path
 
@@ -97,11 +98,29 @@ def test_the_command_line_flag(capsys):
     spec = importlib.util.spec_from_file_location("script_generate_noise", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    main = module.main
+    return module.main
+
+
+def test_the_command_line_flag(capsys):
+    main = generate_main()
     assert main(["--task", TASK, "--action-noise", "0.005-0.02", "--print-scenario"]) == 0
     assert capsys.readouterr().out.endswith("action_noise:\n- 0.005\n- 0.02\n")
     assert main(["--task", TASK, "--action-noise", "0.3"]) == 2
     assert "--action-noise: a level must be in [0, 0.2] rad" in capsys.readouterr().err
+
+
+def test_the_flag_alone_asks_for_the_default_level(capsys):
+    """`--action-noise` without a value is DEFAULT_ACTION_NOISE (what the sweep supports); a
+    value overrides it; no flag, no noise."""
+    from bicoord_drake.scenario import DEFAULT_ACTION_NOISE
+
+    main = generate_main()
+    assert main(["--task", TASK, "--action-noise", "--print-scenario"]) == 0
+    assert f"action_noise: {DEFAULT_ACTION_NOISE}\n" in capsys.readouterr().out
+    assert main(["--task", TASK, "--action-noise", "0.01", "--print-scenario"]) == 0
+    assert "action_noise: 0.01\n" in capsys.readouterr().out
+    assert main(["--task", TASK, "--print-scenario"]) == 0
+    assert "action_noise" not in capsys.readouterr().out
 
 
 def test_a_range_draws_one_level_per_episode_from_the_seed():
