@@ -26,8 +26,9 @@ Kinds (:data:`DISTURBANCE_KINDS`):
   object still fell between them would pinch and fling it; the expert's command
   stays the label, what ran is the episode's ``joint_action/executed``), with a plan boundary
   after it. The expert picks the object up again (:mod:`bicoord_drake.tasks.recovery`).
-- ``knock``: a push on an object the expert placed (held, then released and at rest on the
-  table or a fixture alone: not on another object, not in a drawer), clear of the table's
+- ``knock``: a push on an object the expert placed (held, then released and at rest alone on
+  the table top, or on a flat marker there: not on another object, a shelf or in a drawer,
+  where the expert would not put it back), clear of the table's
   edge and the other free objects (a fixture, such as the marker it was set down on, may be
   in its way), that slides without tipping over as friction stops it
   (:func:`topples_when_slid`: a block standing on its end is not knocked), with a plan
@@ -396,6 +397,16 @@ def _free_on_support(f: FrameFacts, name: str, fixtures: set[str]) -> bool:
     )
 
 
+def _on_table_top(station: Station, name: str, pose: np.ndarray) -> bool:
+    """Whether object `name` at `pose` (7,) stands on the table top (its lowest point within
+    1 cm of it: a flat marker under it allowed), not on a shelf or in a holder."""
+    from bicoord_drake.models.scene import TABLE_TOP
+
+    pose = np.asarray(pose, dtype=float)
+    bottom = pose[2] - _extent(station, name, _rotation(pose[3:]), (0, 0, -1))
+    return abs(bottom - TABLE_TOP) < 0.01
+
+
 def _knock_fits(
     frames: list[FrameFacts],
     boundaries: Sequence[int],
@@ -491,6 +502,8 @@ def _plan_knock(rng: np.random.Generator, trace: ExpertTrace, station: Station) 
         if not steps:
             continue
         f = frames[steps[0]]
+        if not _on_table_top(station, name, f.poses[name]):
+            continue  # on a shelf, in a holder: the expert puts back only what it set on the table
         # clear of the other free objects; a fixture (a marker it was set down on) may be
         # in the way: the object slides off it, or stops against it
         force = slide_push(station, name, f.poses, distance, angle, {*f.touching[name], *fixtures})

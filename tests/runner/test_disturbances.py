@@ -232,6 +232,21 @@ def test_a_knock_falls_on_a_placed_object_resting_alone(jigsaw):
         plan_disturbances(("knock",), 0, trace, station)
 
 
+def test_a_knock_leaves_out_what_stands_above_the_table_top(jigsaw):
+    """An object set down on a shelf (here: its rest 5 cm above where it stood) is not knocked:
+    the expert puts back only what it set on the table top."""
+    trace, station = synthetic_trace(jigsaw), jigsaw.station
+    placed = {"spare_left_1", "spare_right_1"}
+    assert plan_disturbances(("knock",), 0, trace, station)[0].body in placed
+    for f in trace.frames[90:]:
+        poses = dict(f.poses)
+        for name in placed:
+            poses[name] = poses[name] + np.array([0, 0, 0.05, 0, 0, 0, 0])
+        f.poses = poses
+    with pytest.raises(NoDisturbanceWindow, match="knock: no object"):
+        plan_disturbances(("knock",), 0, trace, station)
+
+
 def test_a_knock_leaves_out_what_would_tip_over_as_it_slides(jigsaw, monkeypatch):
     """A 4 cm cube sliding on the table (combined friction 0.85) stops on its face: friction's
     moment (0.85 x 2 cm) stays inside its leading edge (2 cm, 2.8 cm along a diagonal); at a
