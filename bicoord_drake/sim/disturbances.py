@@ -636,12 +636,10 @@ def slide_push(
     of `poses` (but those in `ignore`, e.g. its support); a round object lying on its side (a
     roller, a pen) is pushed along its axis only (across, it would roll). None: no direction is
     clear, or the object is a ball."""
-    from bicoord_drake.models.scene import TABLE_TOP
     from bicoord_drake.models.table import TABLE_SIZE
 
     pose = np.asarray(poses[name], dtype=float)
     R = _rotation(pose[3:])
-    below = _extent(station, name, R, (0, 0, -1))
     units = [
         np.array([math.cos(a), math.sin(a), 0.0])
         for a in (angle + 2 * math.pi * j / DIRECTIONS for j in range(DIRECTIONS))
@@ -682,8 +680,7 @@ def slide_push(
         mu = combined_friction(station, name)
         dt = station.config.control_period
         k = slide_factor(distance, mu, steps_of(PUSH_SECONDS, dt) * dt)
-        com_W = pose[:3] + R @ np.asarray(body.default_com(), dtype=float)
-        height = max(com_W[2] - max(pose[2] - below, TABLE_TOP), 0.0)
+        com_W, height = _centre_of_mass(station, name, pose, R)
         point_W = np.array([com_W[0], com_W[1], com_W[2] - height / k])
         force = k * mu * float(body.default_mass()) * GRAVITY * unit
         return _triple(force), _triple(R.T @ (point_W - pose[:3]))
@@ -699,17 +696,25 @@ def topples_when_slid(
     while ``mu h`` stays within the leading edge's distance from the centre of mass. A 12 cm
     block standing on a 4 cm end tips (0.85 x 6 cm against 2 cm); a 4 cm cube does not (1.7
     against 2 cm)."""
-    from bicoord_drake.models.scene import TABLE_TOP
-
     pose = np.asarray(pose, dtype=float)
     R = _rotation(pose[3:])
     unit = np.asarray(direction, dtype=float)
     unit = unit / np.linalg.norm(unit)
-    com_B = np.asarray(station.object_bodies[name].default_com(), dtype=float)
-    com_W = pose[:3] + R @ com_B
-    height = com_W[2] - max(pose[2] - _extent(station, name, R, (0, 0, -1)), TABLE_TOP)
-    lead = _extent(station, name, R, unit) - float((R @ com_B) @ unit)
+    com_W, height = _centre_of_mass(station, name, pose, R)
+    lead = _extent(station, name, R, unit) - float((com_W - pose[:3]) @ unit)
     return combined_friction(station, name) * height > lead
+
+
+def _centre_of_mass(
+    station: Station, name: str, pose: np.ndarray, R: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """Object `name`'s centre of mass (world, m) at `pose` (7,; rotation R) and its height
+    above what it stands on (its lowest point, or the table top if that is lower; >= 0)."""
+    from bicoord_drake.models.scene import TABLE_TOP
+
+    com_W = pose[:3] + R @ np.asarray(station.object_bodies[name].default_com(), dtype=float)
+    bottom = max(pose[2] - _extent(station, name, R, (0, 0, -1)), TABLE_TOP)
+    return com_W, max(float(com_W[2] - bottom), 0.0)
 
 
 def _rotation(wxyz: np.ndarray) -> np.ndarray:
