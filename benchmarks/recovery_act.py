@@ -66,6 +66,8 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 import policy_reproduces  # noqa: E402
 
+from bicoord_drake.scenario import DEFAULT_ACTION_NOISE  # noqa: E402
+
 baselines = policy_reproduces.baselines
 expert_success = policy_reproduces.expert_success
 
@@ -154,7 +156,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     add = parser.add_argument
     add("--tasks", default=",".join(DEFAULT_TASKS), help="comma-separated task names")
     add("--demos", type=int, default=50, help="CLEAN demonstrations, and as many RECOVERY ones")
-    add("--noise", default="0.005", help="RECOVERY's --action-noise, rad (SIGMA or LO-HI; 0: off)")
+    add(
+        "--noise",
+        default=f"{DEFAULT_ACTION_NOISE:g}",
+        help="RECOVERY's --action-noise, rad (SIGMA or LO-HI; 0: off; default: generate.py's "
+        "--action-noise without a value)",
+    )
     add(
         "--disturb",
         default="push",

@@ -18,7 +18,7 @@ def rec():
 def test_defaults_are_the_issue_and_the_baselines_act(rec):
     args = rec.parse_args([])
     assert args.tasks == ["balance_roller", "put_objects_cabinet"]
-    assert (args.demos, args.noise, args.disturb) == (50, "0.005", ["push"])
+    assert (args.demos, args.noise, args.disturb) == (50, "0.003", ["push"])
     assert (args.clean_seed, args.recovery_seed, args.eval_seed) == (0, 50000, 0)
     # the baselines' state ACT rows: 10000 steps, batch 16, the CPU-sized ACT
     assert (args.steps, args.batch_size, args.train_seed) == (10000, 16, 1000)
@@ -72,7 +72,7 @@ def test_generation_commands_and_directories(rec, tmp_path):
     assert clean.demos == tmp_path / "data" / "clean_seed0" / "balance_roller" / "default"
     assert (
         recovery.demos
-        == (tmp_path / "data" / "recovery_seed50000_noise0.005_push" / "balance_roller")
+        == (tmp_path / "data" / "recovery_seed50000_noise0.003_push" / "balance_roller")
         / "default_noisy_disturbed"
     )
     command = rec.generate_command("balance_roller", clean, args)
@@ -83,7 +83,7 @@ def test_generation_commands_and_directories(rec, tmp_path):
     assert "--action-noise" not in command and "--disturb" not in command
     command = rec.generate_command("balance_roller", recovery, args)
     assert command[command.index("--seed") + 1] == "50000"
-    assert command[command.index("--action-noise") + 1] == "0.005"
+    assert command[command.index("--action-noise") + 1] == "0.003"
     assert command[command.index("--disturb") + 1] == "push"
     assert command[command.index("--out") + 1] == str(recovery.data)
     # disturbances without noise: generate.py's default_disturbed, its own generation root
@@ -331,11 +331,11 @@ def test_report_has_a_table_per_task_the_commands_and_an_empty_reading(rec):
     assert clean[12] == "2: SR 50.0 / 0.0, SSR 75.0 / 25.0"
     assert clean[13] == "lift 50.0 / 50.0; balance 33.3 / 0.0"
     assert clean[14:18] == ["100000-100003", "1: 100003", "1: 100002", "1 / 1"]
-    mixed = cells(text, "clean+recovery (noise 0.005 rad, push)")
+    mixed = cells(text, "clean+recovery (noise 0.003 rad, push)")
     assert mixed[1:3] == ["50 + 50", "300 of 12000 (2.5 %)"]
     assert "- demonstrations, CLEAN: 50 kept of 50 seeds tried (0-49)" in text
     assert (
-        "- demonstrations, RECOVERY (noise 0.005 rad, push): 50 kept of 53 seeds tried "
+        "- demonstrations, RECOVERY (noise 0.003 rad, push): 50 kept of 53 seeds tried "
         "(50000-50052); failures: no_disturbance_window 3"
     ) in text
     assert "- AMD EPYC, 2 cores (2 results)" in text
@@ -358,7 +358,7 @@ def test_rewrites_are_atomic_and_keep_what_the_reader_wrote(rec, tmp_path):
     rec.write_report(out, [fake_result(rec), fake_result(rec, rec.MIXED)], "cmd", tmp_path)
     text = out.read_text()
     assert "Recovery data helped here." in text and rec.READING_PLACEHOLDER not in text
-    assert "| clean+recovery (noise 0.005 rad, push) |" in text
+    assert "| clean+recovery (noise 0.003 rad, push) |" in text
     assert [p.name for p in tmp_path.iterdir()] == [out.name]  # no temporary file left
     # the latest result of a key replaces the earlier one
     rec.write_report(out, [fake_result(rec), fake_result(rec, final_loss=0.1)], "cmd", tmp_path)
@@ -446,7 +446,7 @@ def test_every_step_resumes_and_force_redoes_them(rec, tmp_path, monkeypatch, ca
     ]
     assert "generate_recovery" not in clean["commands"]
     text = out.read_text()
-    assert "| clean |" in text and "| clean+recovery (noise 0.005 rad, push) |" in text
+    assert "| clean |" in text and "| clean+recovery (noise 0.003 rad, push) |" in text
     printed = capsys.readouterr().out
     assert "[balance_roller] 1/8 CLEAN demonstrations" in printed
     assert "[balance_roller] 8/8 clean+recovery: evaluate" in printed
