@@ -24,6 +24,9 @@ from bicoord_drake.models.objects import BowlShape, BoxShape, SceneObject
 
 #: World height of the table top (m); objects rest on it at z = TABLE_TOP + their half height.
 TABLE_TOP = 0.75
+#: An object's lowest point within this distance (m) of TABLE_TOP stands on the table top
+#: itself (a flat marker under it allowed), not on a shelf, in a holder or on another object.
+ON_TABLE_TOP_TOLERANCE = 0.01
 
 
 class Scene(BaseModel):

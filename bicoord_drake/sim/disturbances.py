@@ -400,11 +400,11 @@ def _free_on_support(f: FrameFacts, name: str, fixtures: set[str]) -> bool:
 def _on_table_top(station: Station, name: str, pose: np.ndarray) -> bool:
     """Whether object `name` at `pose` (7,) stands on the table top (its lowest point within
     1 cm of it: a flat marker under it allowed), not on a shelf or in a holder."""
-    from bicoord_drake.models.scene import TABLE_TOP
+    from bicoord_drake.models.scene import ON_TABLE_TOP_TOLERANCE, TABLE_TOP
 
     pose = np.asarray(pose, dtype=float)
     bottom = pose[2] - _extent(station, name, _rotation(pose[3:]), (0, 0, -1))
-    return abs(bottom - TABLE_TOP) < 0.01
+    return abs(bottom - TABLE_TOP) < ON_TABLE_TOP_TOLERANCE
 
 
 def _knock_fits(

@@ -151,10 +151,11 @@ def knocked(
 
 def _on_table_top(shape, X_WO_goal: RigidTransform) -> bool:
     """Whether a placement's goal stands the object on the table top itself."""
-    from bicoord_drake.models.scene import TABLE_TOP
+    from bicoord_drake.models.scene import ON_TABLE_TOP_TOLERANCE, TABLE_TOP
     from bicoord_drake.planning.grasps import bottom_offset
 
-    return abs(X_WO_goal.translation()[2] - bottom_offset(shape) - TABLE_TOP) < 0.01
+    bottom = X_WO_goal.translation()[2] - bottom_offset(shape)
+    return abs(bottom - TABLE_TOP) < ON_TABLE_TOP_TOLERANCE
 
 
 def missed_distance(shape, X_WO_goal: RigidTransform) -> float:
