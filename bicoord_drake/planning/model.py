@@ -236,6 +236,10 @@ class PlanningModel:
         self._nominal_filtered = {
             pair: self.checker.IsCollisionFilteredBetween(*pair) for pair in self._cluster_pairs
         }
+        # What the checker carries now (see _sync_checker_held): per gripper the held
+        # object's name and grasp (None: nothing), and whether the hands' filters are open.
+        self._checker_held: dict[str, tuple[str, bytes] | None] = dict.fromkeys(SIDES)
+        self._checker_together = False
         for side in SIDES:
             self.set_gripper(side, self.embodiment.home_opening)
         for obj in self.scene.objects:
@@ -448,20 +452,32 @@ class PlanningModel:
 
     def _sync_checker_held(self) -> None:
         """Put each held object's shapes on its carrier's gripper and set the hand-to-hand
-        filters of a two-handed hold."""
+        filters of a two-handed hold. A gripper whose shapes are already those of its hold
+        (the same object at the same grasp) keeps them: adding a shape to the checker costs
+        milliseconds (it rebuilds the checker's contexts), and merged motions switch the holds
+        back and forth many times per plan."""
         for side in SIDES:
+            held = self._held.get(side)
+            carried = not (
+                held is None or held.name in self._ignored or self._holder(held.name) != side
+            )
+            key = (held.name, held.X_GO.GetAsMatrix34().tobytes()) if carried else None
+            if self._checker_held.get(side) == key:
+                continue
             group = _HELD_GROUP.format(side=side)
             self.checker.RemoveAllAddedCollisionShapes(group)
-            held = self._held.get(side)
-            if held is None or held.name in self._ignored or self._holder(held.name) != side:
+            self._checker_held[side] = key
+            if not carried:
                 continue
             for shape, X_GP in self._held_shapes(held):
                 self.checker.AddCollisionShapeToBody(group, self.gripper_bodies[side], shape, X_GP)
         together = self.held_together is not None
-        for pair in self._cluster_pairs:
-            self.checker.SetCollisionFilteredBetween(
-                *pair, together or self._nominal_filtered[pair]
-            )
+        if self._checker_together != together:
+            for pair in self._cluster_pairs:
+                self.checker.SetCollisionFilteredBetween(
+                    *pair, together or self._nominal_filtered[pair]
+                )
+            self._checker_together = together
         self._update_radius()
         self._contexts.clear()
 
@@ -610,11 +626,13 @@ class PlanningModel:
         cross = robot[:, None] & robot[None, :] & (side_of[:, None] != side_of[None, :])
         only = previous.copy()
         only[(only == 0) & ~cross] = 1
+        together = self._checker_together
         self.checker.SetCollisionFilterMatrix(only)
         try:
             yield
         finally:
             self.checker.SetCollisionFilterMatrix(previous)
+            self._checker_together = together
 
     @contextmanager
     def keeping_padding(self) -> Iterator[None]:
