@@ -8,7 +8,7 @@ The planning model puts each held object's collision shapes on its gripper in Dr
 ``SceneGraphCollisionChecker`` (``PlanningModel._sync_checker_held``), and every change of the
 holds (an attach, a detach, a merged motion checking each arm with what it carries, an object
 ignored for a move) syncs them. Adding a shape costs milliseconds. The package keeps a
-gripper's shapes when its hold is unchanged; ``--mode rebuild`` restores the earlier behaviour
+gripper's shapes when its hold is unchanged; the *rebuild* runs restore the earlier behaviour
 (every sync removes and re-adds every shape and resets the hands' filters) by forgetting what
 the checker carries before each sync.
 
@@ -127,9 +127,9 @@ def machine() -> str:
                 break
     except OSError:
         pass
-    import pydrake
+    from importlib.metadata import version as package_version
 
-    version = getattr(pydrake, "__version__", "?")
+    version = package_version("drake")
     cpus = len(os.sched_getaffinity(0))
     return f"{cpu}, {cpus} CPUs, Python {platform.python_version()}, drake {version}"
 
