@@ -23,10 +23,7 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import os
-import platform
 import statistics
-import subprocess
 import sys
 import time
 from datetime import datetime, timezone
@@ -34,6 +31,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # measure this checkout's code
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import expert_success  # noqa: E402  (its sibling: git state and machine line)
 
 DEFAULT_CASES = (
     "place_plate_and_cup:franka_pair:0",
@@ -118,39 +117,10 @@ def run_case(task: str, robot: str, seed: int, mode: str) -> dict:
     }
 
 
-def machine() -> str:
-    cpu = "unknown CPU"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    from importlib.metadata import version as package_version
-
-    version = package_version("drake")
-    cpus = len(os.sched_getaffinity(0))
-    return f"{cpu}, {cpus} CPUs, Python {platform.python_version()}, drake {version}"
-
-
-def commit() -> str:
-    try:
-        out = subprocess.run(
-            ["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "-C", str(ROOT), "status", "--porcelain", "--untracked-files=no"],
-            capture_output=True,
-            text=True,
-            check=True,
-        ).stdout.strip()
-        return out + (" (with uncommitted changes)" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown"
+def commit_text() -> str:
+    """The commit measured, marked when the package differs from it."""
+    head, dirty = expert_success.git_state(ROOT)
+    return head[:7] + (" (with uncommitted changes)" if dirty else "")
 
 
 def markdown(rows: list[dict], command: str) -> str:
@@ -179,7 +149,7 @@ def markdown(rows: list[dict], command: str) -> str:
         f"({rebuild / keep:.2f}x).",
         "",
         f"Medians of {rows[0]['repeats']} run(s) per case and mode, the modes alternating. "
-        f"Machine: {machine()}. Commit: {commit()}. "
+        f"Machine: {expert_success.machine()}. Commit: {commit_text()}. "
         f"Date: {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC.",
         "",
         "Command:",
