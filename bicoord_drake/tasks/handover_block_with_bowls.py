@@ -77,7 +77,7 @@ POUR_CAVITY = Cavity(
 # ---- the catching bowl (right): a straight 12 mm-wall bowl 20 cm across at the rim (TASKS.md
 # section 12: wide enough for a hand as wide as the Franka Hand to hold its rim clear of the
 # cube's fall).
-CATCH_BOWL = BowlShape(radius=0.10, base_radius=0.10, height=0.05, wall=0.012)
+CATCH_BOWL = BowlShape(radius=0.10, base_radius=0.10, height=0.05, wall=0.012, walls_on_base=True)
 CUBE = 0.02
 TARGET = 0.10  # side of the grey target square
 # ---- where the pour happens (world): the lip above the catching bowl.
@@ -140,6 +140,14 @@ SET_DOWN = 0.0  # bowl bottom above the table at the release, m
 #: off the wall: with 5 mm the ViperX's inner finger, 4 mm off the catching bowl's wall after
 #: the partial opening, lifted the bowl as the hand backed off (seeds 4, 19, 28).
 BOWL_MARGIN = 0.003
+#: Both bowls' hydroelastic mesh size (m; SceneObject.resolution_hint; it shapes their base
+#: discs' pressure fields, the wall slabs are boxes). With their walls standing on their bases
+#: (only the discs touch the table) it is what a bowl at rest costs: at the default 1 cm the
+#: discs met the table in 285 and 441 contact faces, every wall slab in 26-35 more (1784 faces,
+#: 118 ms of physics per control step with both bowls standing and the arms at home); walls on
+#: the bases and 4 cm: 242 faces, 31 ms. A failing policy leaves both bowls standing for its
+#: whole step limit (benchmarks/bench_early_stop.md).
+BOWL_RESOLUTION = 0.04
 #: Where the left arm sets its emptied bowl down (table x, y): beside the meeting point
 #: (TASKS.md section 12: x in [-0.12, -0.02]), on the left arm's side of the catching bowl's
 #: way to the target, 5 cm or more from its footprint.
@@ -219,6 +227,7 @@ class HandoverBlockWithBowls(Task):
         pour_bowl = SceneObject(
             name="pour_bowl",
             contact_margin=BOWL_MARGIN,
+            resolution_hint=BOWL_RESOLUTION,
             shape=pour_bowl_shape(),
             color=color,
             mass=0.1,
@@ -227,6 +236,7 @@ class HandoverBlockWithBowls(Task):
         catch_bowl = SceneObject(
             name="catch_bowl",
             contact_margin=BOWL_MARGIN,
+            resolution_hint=BOWL_RESOLUTION,
             shape=CATCH_BOWL,
             color=color,
             mass=0.1,
@@ -360,11 +370,12 @@ class HandoverBlockWithBowls(Task):
 
 # -------------------------------------------------------------------- the pouring bowl
 def pour_bowl_shape() -> CompoundShape:
-    """A base disc and a ring of straight wall slabs; the slabs facing +x are only a low lip."""
+    """A base disc and a ring of straight wall slabs standing on it (only the disc touches the
+    table); the slabs facing +x are only a low lip."""
     parts = [
         Primitive(
             kind="cylinder",
-            size=(POUR_RADIUS - 0.001, POUR_BASE),
+            size=(POUR_RADIUS, POUR_BASE),
             pose=Pose(xyz=(0.0, 0.0, POUR_BASE / 2)),
         )
     ]
@@ -373,13 +384,14 @@ def pour_bowl_shape() -> CompoundShape:
     for k in range(POUR_SEGMENTS):
         yaw = 2 * np.pi * k / POUR_SEGMENTS
         spout = abs(np.angle(np.exp(1j * yaw))) < SPOUT_HALF_ANGLE
-        height = POUR_BASE + POUR_LIP if spout else POUR_HEIGHT
+        height = POUR_LIP if spout else POUR_HEIGHT - POUR_BASE
         parts.append(
             Primitive(
                 kind="box",
                 size=(POUR_WALL, float(chord), float(height)),
                 pose=Pose(
-                    xyz=(r_mid * np.cos(yaw), r_mid * np.sin(yaw), height / 2), rpy=(0, 0, yaw)
+                    xyz=(r_mid * np.cos(yaw), r_mid * np.sin(yaw), POUR_BASE + height / 2),
+                    rpy=(0, 0, yaw),
                 ),
             )
         )

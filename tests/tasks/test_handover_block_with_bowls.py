@@ -95,13 +95,24 @@ def test_the_bowl_must_rest_on_the_target_released_and_settled(task):
 def test_pour_bowl_has_a_low_spout_facing_its_x_axis():
     shape = hbb.pour_bowl_shape()
     walls = [p for p in shape.parts if p.kind == "box"]
-    low = [p for p in walls if p.size[2] < hbb.POUR_HEIGHT]
+    tops = [p.pose.xyz[2] + p.size[2] / 2 for p in walls]
+    low = [p for p, top in zip(walls, tops, strict=True) if top < hbb.POUR_HEIGHT - 1e-9]
     assert 1 <= len(low) <= 4
     for p in low:
-        x, y, _ = p.pose.xyz
+        x, y, z = p.pose.xyz
         assert abs(np.arctan2(y, x)) < hbb.SPOUT_HALF_ANGLE
         # the lip is lower than half the cube: the cube tips over it
-        assert p.size[2] - hbb.POUR_BASE < hbb.CUBE / 2
+        assert z + p.size[2] / 2 - hbb.POUR_BASE < hbb.CUBE / 2
+
+
+def test_bowl_walls_stand_on_their_bases():
+    """Only the base discs touch the table (a bowl at rest is cheap: BOWL_RESOLUTION)."""
+    for shape in (hbb.pour_bowl_shape(), hbb.CATCH_BOWL):
+        parts = shape.parts if hasattr(shape, "parts") else shape.primitives()
+        base, walls = parts[0], parts[1:]
+        assert base.kind == "cylinder" and base.pose.xyz[2] - base.size[1] / 2 == 0.0
+        for p in walls:
+            assert p.pose.xyz[2] - p.size[2] / 2 >= base.size[1] - 1e-9
 
 
 @pytest.mark.slow
