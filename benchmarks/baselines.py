@@ -129,14 +129,30 @@ def shown(command: list[str]) -> str:
     return shlex.join(names.get(part, part) for part in command)
 
 
-def run(command: list[str], log: Path) -> tuple[str, float]:
-    """Run `command` (output to `log` as well); returns (stdout, seconds). RuntimeError with
-    the log's tail if it fails."""
+def run(
+    command: list[str],
+    log: Path,
+    *,
+    cwd: Path | None = None,
+    env: dict[str, str] | None = None,
+) -> tuple[str, float]:
+    """Run `command` (output to `log` as well) in `cwd` (default: this checkout) with `env`
+    (default: :func:`subprocess_env`); returns (stdout, seconds). RuntimeError with the log's
+    tail if it fails."""
     log.parent.mkdir(parents=True, exist_ok=True)
+    where = "" if cwd is None else f"cd {shlex.quote(str(cwd))} && "
+    if env is not None:
+        where += f"PYTHONPATH={shlex.quote(env.get('PYTHONPATH', ''))} "
     start = time.perf_counter()
-    out = subprocess.run(command, capture_output=True, text=True, env=subprocess_env(), cwd=ROOT)
+    out = subprocess.run(
+        command,
+        capture_output=True,
+        text=True,
+        env=subprocess_env() if env is None else env,
+        cwd=ROOT if cwd is None else cwd,
+    )
     seconds = time.perf_counter() - start
-    log.write_text(f"$ {shlex.join(command)}\n{out.stdout}\n--- stderr ---\n{out.stderr}")
+    log.write_text(f"$ {where}{shlex.join(command)}\n{out.stdout}\n--- stderr ---\n{out.stderr}")
     if out.returncode != 0:
         raise RuntimeError(
             f"{shlex.join(command[:4])} ... failed; see {log}:\n{out.stderr[-2000:]}"

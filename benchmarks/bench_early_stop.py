@@ -3,6 +3,8 @@
 
     python benchmarks/bench_early_stop.py                      # train a failing ACT, 50 rollouts
     python benchmarks/bench_early_stop.py --checkpoint out/act_run --episodes 50 --split
+    python benchmarks/bench_early_stop.py --checkpoint DIR --before 512374c --episodes 50 \\
+        --workers 2 --split                                    # "before": commit 512374c
     python benchmarks/bench_early_stop.py --demos 1 --train-steps 20 --episodes 1 \\
         --work /tmp/bes --out /tmp/bes/out.md                  # a smoke run (minutes)
 
@@ -10,7 +12,13 @@ Issue #53 item 4: a rollout ends early, as a failure with its reason, once a tas
 left the table (``scripts/evaluate.py`` does so by default; ``--no-early-stop`` turns it off;
 a diverged physics ends a rollout in both). Goal: ``--episodes`` (50) rollouts of the same
 failing policy on ``--task`` (handover_block_with_bowls) in at most 1/3 of the time they take
-without the early stop, both measured in one run. The steps:
+without the early stop, both measured in one run. By default both evaluations run this
+checkout's package; with ``--before REV`` the one without the early stop runs the package of
+git revision REV instead (the issue's "current commit", against this one): REV is checked out
+with ``git worktree add --detach TMP/tree REV`` and ``scripts/evaluate.py`` runs there (working
+directory the tree, the tree first on ``PYTHONPATH``), still with ``--no-early-stop``; the
+worktree is removed at the end, also on an error. REV needs ``benchmarks/bench_early_stop.py``
+with ``warm_expert_check`` (b96629b or later). The steps:
 
 1. the failing policy: ``--checkpoint DIR`` (a lerobot-train output directory), or one trained
    here as ``benchmarks/policy_reproduces.py`` trains (its commands, paths and
@@ -18,7 +26,9 @@ without the early stop, both measured in one run. The steps:
    (``scripts/generate.py --no-render --workers 1`` into ``WORK/data``), exported state-based,
    and ACT trained for ``--train-steps`` steps (few: it fails);
 2. the expert check of the evaluation seeds, in this process (:func:`warm_expert_check`), so
-   that neither evaluation pays for it (the first one would, the second read its cache);
+   that neither evaluation pays for it (the first one would, the second read its cache); with
+   ``--before`` also in the worktree (its cache key holds a fingerprint of the package's code):
+   its own ``warm_expert_check`` in a subprocess there (:func:`warm_tree_check`);
 3. ``scripts/evaluate.py --policy lerobot:CKPT --episodes N --seed S --no-render --workers W
    --json`` twice on the same evaluation seeds (the default, unseen split), one after the other:
    "before" with ``--no-early-stop`` and "after" with the early stop (``--order``: which
@@ -26,21 +36,25 @@ without the early stop, both measured in one run. The steps:
 4. with ``--split``: one rollout of the checkpoint on the first evaluated seed, without the
    early stop, in this process under cProfile (:func:`run_split`): the share of its wall time
    in the physics (``Simulator.AdvanceTo``, in ``Simulation.step``), in the policy's ``act``,
-   and the rest (the environment's step outside the physics, its reset, the loop).
+   and the rest (the environment's step outside the physics, its reset, the loop); always
+   this checkout's package, also with ``--before``.
 
 The task's section of ``--out`` (other sections kept; written to a temporary file, then
 renamed) gives the machine, date (UTC), commit (dirty: the package had uncommitted changes),
-the exact commands, per mode the wall time of the evaluation process, the sum, median and
-largest of the rollouts' own seconds, the simulated steps, SR and the failures by reason,
-the ratio after/before of the wall times and the verdict (goal: <= 1/3), the split, and per
-seed the steps and seconds before and after and why the rollout failed after.
+the exact commands, per mode the package it ran (its commit) and the wall time of the
+evaluation process, the sum, median and largest of the rollouts' own seconds, the simulated
+steps, SR and the failures by reason, the ratio after/before of the wall times and the verdict
+(goal: <= 1/3), the split, and per seed the steps and seconds before and after and why the
+rollout failed after.
 
 Every step is skipped when its output is already in ``--work`` (an interrupted run resumes):
 demonstrations, dataset and checkpoint as in policy_reproduces.py, an evaluation when its record
-(``WORK/eval_<mode>/run.json``) has the same command and checkpoint files, the split when
-``WORK/split.json`` is of the same checkpoint and seed; ``--force`` redoes them all. Exit
-status: 0 when both evaluations ran on the same seeds, 1 on an error or when their seeds
-differ, 2 for bad arguments. Training needs lerobot:
+(``WORK/eval_<mode>/run.json``) has the same command, checkpoint files and package (its commit
+and, for this checkout, whether it was dirty: a ``--before`` run never reuses an evaluation of
+this checkout, nor the other way round), the split when ``WORK/split.json`` is of the same
+checkpoint and seed; ``--force`` redoes them all. Exit status: 0 when both evaluations ran on
+the same seeds, 1 on an error or when their seeds differ, 2 for bad arguments (among them a
+``--before`` that git cannot resolve to a commit). Training needs lerobot:
 ``pip install -e '.[train]' && pip install --no-deps lerobot==0.4.4``.
 """
 
@@ -52,14 +66,18 @@ import hashlib
 import importlib
 import inspect
 import json
+import os
 import pstats
 import re
 import shlex
 import shutil
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -127,9 +145,18 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         help="the evaluations' order: before,after (default) or after,before",
     )
     parser.add_argument(
+        "--before",
+        metavar="REV",
+        help="run the evaluation without the early stop on the package of git revision REV, "
+        "checked out in a temporary git worktree (REV: b96629b or later; default: this "
+        "checkout), e.g. python benchmarks/bench_early_stop.py --checkpoint DIR --before "
+        "512374c --episodes 50 --workers 2 --split",
+    )
+    parser.add_argument(
         "--split",
         action="store_true",
-        help="also profile one rollout without the early stop: physics, act and the rest",
+        help="also profile one rollout without the early stop: physics, act and the rest "
+        "(this checkout's package, also with --before)",
     )
     parser.add_argument(
         "--work",
@@ -153,6 +180,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
             parser.error(f"--checkpoint {args.checkpoint}: no such directory")
         args.checkpoint = args.checkpoint.resolve()
     args.order = tuple(args.order.split(","))
+    args.before_commit = revision(args.before) if args.before is not None else None
     args.work = args.work.resolve()  # the steps run with the checkout as working directory
     args.out = args.out.resolve()
     return args
@@ -190,6 +218,109 @@ def paths_of(task: str, args: argparse.Namespace) -> Paths:
         logs=args.work / "logs",
         split=args.work / "split.json",
     )
+
+
+# --------------------------------------------------------------------------- the packages
+#: What an older revision needs for ``--before``: its own expert check, run in its worktree.
+TREE_NEEDS = "benchmarks/bench_early_stop.py with warm_expert_check (b96629b or later)"
+#: ``python -c TREE_CHECK TASK CHECKPOINT EPISODES SEED WORKERS``, in a worktree: that tree's
+#: :func:`warm_expert_check` of the evaluation seeds, its result as JSON on the last line.
+TREE_CHECK = """\
+import argparse, json, sys
+from pathlib import Path
+sys.path.insert(0, "benchmarks")
+import bench_early_stop as bes
+task, checkpoint, episodes, seed, workers = sys.argv[1:]
+args = argparse.Namespace(episodes=int(episodes), seed=int(seed), workers=int(workers))
+config = bes.evaluation_config(task, Path(checkpoint), args, early_stop=False)
+print(json.dumps(bes.warm_expert_check(config)))
+"""
+
+
+@dataclass(frozen=True)
+class Package:
+    """The package an evaluation runs: this checkout's, or that of a worktree of ``--before``."""
+
+    commit: str  # short hash
+    dirty: bool = False  # this checkout, with uncommitted changes to the package
+    tree: Path | None = None  # the worktree of --before (None: this checkout)
+    rev: str | None = None  # --before as given
+
+    @property
+    def cwd(self) -> Path:
+        """Where its commands run."""
+        return ROOT if self.tree is None else self.tree
+
+    def env(self) -> dict[str, str] | None:
+        """Its commands' environment: the tree first on PYTHONPATH (None: baselines.run's)."""
+        if self.tree is None:
+            return None
+        path = os.pathsep.join(filter(None, [str(self.tree), os.environ.get("PYTHONPATH")]))
+        return {**baselines.subprocess_env(), "PYTHONPATH": path}
+
+    def key(self) -> dict[str, Any]:
+        """What an evaluation record keeps of it (a record of another package is not reused)."""
+        return {
+            "package": self.commit,
+            "package_dirty": self.dirty,
+            "worktree": self.tree is not None,
+        }
+
+    def shown(self, command: str) -> str:
+        """`command` as the section shows it: from the worktree, for ``--before``."""
+        if self.tree is None:
+            return command
+        return (
+            f"git worktree add --detach TREE {self.rev}  # run from a worktree of {self.rev}\n"
+            f"cd TREE && PYTHONPATH=TREE {command}"
+        )
+
+
+def revision(rev: str) -> str | None:
+    """The short hash of the commit `rev` names (``git rev-parse --verify REV^{commit}``);
+    None when git cannot resolve it."""
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--verify", "--quiet", "--short", f"{rev}^{{commit}}"],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+        )
+    except OSError:
+        return None
+    return out.stdout.strip() if out.returncode == 0 and out.stdout.strip() else None
+
+
+@contextmanager
+def worktree(commit: str | None) -> Iterator[Path | None]:
+    """A detached ``git worktree`` of `commit` in a temporary directory, removed (``git worktree
+    remove --force``) on the way out, also on an error; None without a commit."""
+    if commit is None:
+        yield None
+        return
+    tree = Path(tempfile.mkdtemp(prefix="bench-early-stop-")) / "tree"
+    try:
+        out = subprocess.run(
+            ["git", "worktree", "add", "--detach", str(tree), commit],
+            cwd=ROOT,
+            capture_output=True,
+            text=True,
+        )
+        if out.returncode != 0:
+            raise RuntimeError(f"git worktree add {commit} failed: {out.stderr.strip()}")
+        yield tree
+    finally:
+        subprocess.run(
+            ["git", "worktree", "remove", "--force", str(tree)], cwd=ROOT, capture_output=True
+        )
+        shutil.rmtree(tree.parent, ignore_errors=True)
+
+
+def packages_of(args: argparse.Namespace, tree: Path | None, here: Package) -> dict[str, Package]:
+    """Mode -> the package it runs: "before" the worktree's (with ``--before``), else `here`."""
+    if tree is None:
+        return dict.fromkeys(MODES, here)
+    return {"before": Package(args.before_commit, tree=tree, rev=args.before), "after": here}
 
 
 # --------------------------------------------------------------------------- the commands
@@ -371,6 +502,41 @@ def warm_expert_check(config) -> dict[str, Any]:
     }
 
 
+def tree_check_command(task: str, checkpoint: Path, args: argparse.Namespace) -> list[str]:
+    """``python -c TREE_CHECK ...``: the expert check of the evaluation seeds, run in a tree."""
+    settings = (args.episodes, args.seed, args.workers)
+    return [sys.executable, "-c", TREE_CHECK, task, str(checkpoint), *map(str, settings)]
+
+
+def warm_tree_check(
+    task: str, checkpoint: Path, args: argparse.Namespace, package: Package, log: Path
+) -> dict[str, Any]:
+    """:func:`warm_expert_check` of the worktree of ``--before``, by its own code and package (the
+    cache key holds a fingerprint of the package's code), in a subprocess there."""
+    require_tree_check(package)
+    command = tree_check_command(task, checkpoint, args)
+    try:
+        stdout, _ = baselines.run(command, log, cwd=package.cwd, env=package.env())
+        check = json.loads(stdout.strip().splitlines()[-1])
+        return {k: check[k] for k in ("kept", "skipped", "cached", "seconds")}
+    except (RuntimeError, ValueError, IndexError, KeyError, TypeError) as err:
+        needs = f"the revision needs {TREE_NEEDS}"
+        raise RuntimeError(
+            f"--before {package.rev}: the expert check in its worktree failed ({needs}); "
+            f"see {log}: {err}"
+        ) from err
+
+
+def require_tree_check(package: Package) -> None:
+    """RuntimeError, naming ``--before``, when its tree has no :func:`warm_expert_check`."""
+    try:
+        code = (package.cwd / "benchmarks" / "bench_early_stop.py").read_text()
+    except OSError:
+        code = ""
+    if "def warm_expert_check" not in code or "def evaluation_config" not in code:
+        raise RuntimeError(f"--before {package.rev}: the revision needs {TREE_NEEDS}")
+
+
 # --------------------------------------------------------------------------- 3. evaluations
 def report_of(stdout: str, out: Path) -> dict[str, Any]:
     """The report scripts/evaluate.py printed (``--json``), else the report.json it wrote."""
@@ -407,28 +573,40 @@ def summary(report: dict[str, Any]) -> dict[str, Any]:
 
 
 def evaluate_mode(
-    task: str, checkpoint: Path, mode: str, args: argparse.Namespace, paths: Paths
+    task: str,
+    checkpoint: Path,
+    mode: str,
+    args: argparse.Namespace,
+    paths: Paths,
+    package: Package,
 ) -> dict[str, Any]:
-    """The evaluation of `mode`: its record in ``--work`` if it has this command and
-    checkpoint, else run and timed (wall time of the process) and recorded."""
+    """The evaluation of `mode` on `package`: its record in ``--work`` if it has this command,
+    checkpoint and package, else run (in the package's tree), timed (wall time of the process)
+    and recorded."""
     command = evaluate_command(task, checkpoint, mode, args, paths)
     stamp = checkpoint_stamp(checkpoint)
+    key = {"command": baselines.shown(command), "stamp": stamp, **package.key()}
     try:
         record = json.loads(paths.runs[mode].read_text())
     except (OSError, ValueError):
         record = None
-    same = record and record.get("command") == baselines.shown(command)
-    if same and record.get("stamp") == stamp:
+    if record and all(record.get(k) == v for k, v in key.items()):
         _say(3, f"{mode}: evaluated before ({record['date']}): {paths.runs[mode]}")
         return {**record, "reused": True}
     policy_reproduces._remove(paths.evals[mode])
     what = "without the early stop" if mode == "before" else "with the early stop"
-    _say(3, f"{mode}: {args.episodes} rollouts {what} (log {paths.logs}/evaluate_{mode}.log)")
-    stdout, wall = baselines.run(command, paths.logs / f"evaluate_{mode}.log")
+    where = f"a worktree of {package.rev}" if package.tree else "this checkout"
+    _say(
+        3,
+        f"{mode}: {args.episodes} rollouts {what}, package {package.commit} ({where}; log "
+        f"{paths.logs}/evaluate_{mode}.log)",
+    )
+    stdout, wall = baselines.run(
+        command, paths.logs / f"evaluate_{mode}.log", cwd=package.cwd, env=package.env()
+    )
     record = {
         "mode": mode,
-        "command": baselines.shown(command),
-        "stamp": stamp,
+        **key,
         "wall_seconds": round(wall, 2),
         "date": datetime.now(UTC).strftime("%Y-%m-%d %H:%M"),
         **summary(report_of(stdout, paths.evals[mode])),
@@ -622,10 +800,20 @@ def split_step(
 
 
 # --------------------------------------------------------------------------- the run
+def _say_check(package: Package, check: dict[str, Any]) -> None:
+    print(
+        f"[bench_early_stop] package {package.commit}: {len(check['kept'])} seeds pass, "
+        f"{len(check['skipped'])} skipped ({check['cached']} cached, {check['seconds']:.0f} s)",
+        flush=True,
+    )
+
+
 def run(task: str, args: argparse.Namespace, run_command: str) -> dict[str, Any]:
     """Every step (each skipped when its output is in ``--work``, unless ``--force``); the
     result the Markdown section is written from. RuntimeError (with the log to read) when a
     step fails."""
+    if args.before is not None and args.before_commit is None:
+        raise ValueError(f"--before {args.before}: git cannot resolve it to a commit")
     paths = paths_of(task, args)
     if args.force:
         p = paths.train
@@ -635,23 +823,34 @@ def run(task: str, args: argparse.Namespace, run_command: str) -> dict[str, Any]
             for path in (p.checkpoint, p.dataset, p.demos):
                 policy_reproduces._remove(path)
     start_commit, dirty = expert_success.git_state(ROOT)
+    here = Package(policy_reproduces.short_commit(start_commit), dirty)
 
-    if args.checkpoint is not None:
-        _say(1, f"the policy: {args.checkpoint}")
-        policy = {"checkpoint": str(args.checkpoint), "trained_here": False, "commands": {}}
-    else:
-        policy = train_policy(task, args, paths)
-    checkpoint = Path(policy["checkpoint"])
+    with worktree(args.before_commit) as tree:  # removed at the end, also on an error
+        packages = packages_of(args, tree, here)
+        if tree is not None:
+            _say(1, f"before: the package of {args.before_commit}, a worktree in {tree}")
+            require_tree_check(packages["before"])  # before a training
+        if args.checkpoint is not None:
+            _say(1, f"the policy: {args.checkpoint}")
+            policy = {"checkpoint": str(args.checkpoint), "trained_here": False, "commands": {}}
+        else:
+            policy = train_policy(task, args, paths)
+        checkpoint = Path(policy["checkpoint"])
 
-    _say(2, f"expert check of the evaluation seeds (from 100000 * (1 + {args.seed}))")
-    check = warm_expert_check(evaluation_config(task, checkpoint, args, early_stop=True))
-    print(
-        f"[bench_early_stop] {len(check['kept'])} seeds pass, {len(check['skipped'])} skipped "
-        f"({check['cached']} cached, {check['seconds']:.0f} s)",
-        flush=True,
-    )
+        _say(2, f"expert check of the evaluation seeds (from 100000 * (1 + {args.seed}))")
+        check = warm_expert_check(evaluation_config(task, checkpoint, args, early_stop=True))
+        _say_check(here, check)
+        before_check = None
+        if tree is not None:
+            _say(2, f"expert check of the evaluation seeds in the worktree of {args.before}")
+            log = paths.logs / "expert_check_before.log"
+            before_check = warm_tree_check(task, checkpoint, args, packages["before"], log)
+            _say_check(packages["before"], before_check)
 
-    records = {mode: evaluate_mode(task, checkpoint, mode, args, paths) for mode in args.order}
+        records = {
+            mode: evaluate_mode(task, checkpoint, mode, args, paths, packages[mode])
+            for mode in args.order
+        }
     before, after = records["before"], records["after"]
     seeds = {mode: [r["seed"] for r in records[mode]["rollouts"]] for mode in MODES}
 
@@ -671,6 +870,11 @@ def run(task: str, args: argparse.Namespace, run_command: str) -> dict[str, Any]
         "order": list(args.order),
         "policy": policy,
         "expert_check": check,
+        "expert_check_before": before_check,
+        "before": args.before,
+        "packages": {
+            mode: {"commit": packages[mode].commit, "dirty": packages[mode].dirty} for mode in MODES
+        },
         "seeds_match": seeds["before"] == seeds["after"],
         "stats": stats,
         "ratio": ratio(stats["after"]["wall"], stats["before"]["wall"]),
@@ -681,7 +885,10 @@ def run(task: str, args: argparse.Namespace, run_command: str) -> dict[str, Any]
         "split": split,
         "commands": {
             **policy["commands"],
-            **{f"evaluate_{mode}": records[mode]["command"] for mode in args.order},
+            **{
+                f"evaluate_{mode}": packages[mode].shown(records[mode]["command"])
+                for mode in args.order
+            },
         },
         "run_command": run_command,
         "commit": policy_reproduces.short_commit(start_commit),
@@ -721,17 +928,37 @@ def _policy_rows(policy: dict[str, Any]) -> list[str]:
     ]
 
 
-def _split_lines(split: dict[str, Any] | None, before_seconds: float | None) -> list[str]:
+def _package(package: dict[str, Any]) -> str:
+    return f"`{package['commit']}`{', dirty' if package['dirty'] else ''}"
+
+
+def _check(check: dict[str, Any]) -> str:
+    return (
+        f"{len(check['kept'])} kept, {len(check['skipped'])} skipped ({check['cached']} found "
+        f"in the cache), {_time(check['seconds'])}"
+    )
+
+
+def _split_lines(
+    split: dict[str, Any] | None, before_seconds: float | None, packages: dict[str, Any]
+) -> list[str]:
     if not split:
         return []
-    same = f" (in the evaluation without the early stop: {before_seconds:.1f} s)"
+    here, before = packages["after"], packages["before"]
+    of = "" if before == here else f", package {_package(before)}"
+    same = (
+        ""
+        if before_seconds is None
+        else f" (in the evaluation without the early stop{of}: {before_seconds:.1f} s)"
+    )
+    which = "" if before == here else f" with this checkout's package ({_package(here)})"
     lines = [
         "",
         f"### Where the time goes: one rollout, seed {split['seed']}, without the early stop",
         "",
-        f"In this process under cProfile (which slows Python code more than Drake's and torch's "
-        f"compiled code): {split['steps']} steps, {split['wall']:.1f} s"
-        f"{same if before_seconds is not None else ''}, ended by `{split['failure'] or 'success'}`"
+        f"In this process{which} under cProfile (which slows Python code more than Drake's and "
+        f"torch's compiled code): {split['steps']} steps, {split['wall']:.1f} s{same}, ended by "
+        f"`{split['failure'] or 'success'}`"
         f"; before it, loading the policy ({split['policy']}) took {split['load_seconds']:.1f} s "
         f"and building the environment {split['build_seconds']:.1f} s.",
         "",
@@ -752,7 +979,8 @@ def _split_lines(split: dict[str, Any] | None, before_seconds: float | None) -> 
 def format_section(r: dict[str, Any]) -> str:
     """The Markdown section of one result (starts with '## <task>')."""
     b, a = r["stats"]["before"], r["stats"]["after"]
-    check = r["expert_check"]
+    check, before_check = r["expert_check"], r.get("expert_check_before")
+    packages = r["packages"]
     lines = [f"## {r['task']}", "", f"**{verdict(r['ratio'])}.**", ""]
     if not r["seeds_match"]:
         lines += [
@@ -780,7 +1008,8 @@ def format_section(r: dict[str, Any]) -> str:
         return "-" if s["SR"] is None else f"{100 * s['SR']:.1f} % ({s['successes']}/{s['n']})"
 
     lines += [
-        "| | before (`--no-early-stop`) | after (early stop) |",
+        f"| | before ({_package(packages['before'])}, `--no-early-stop`) "
+        f"| after ({_package(packages['after'])}, early stop) |",
         "|---|---:|---:|",
         row("rollouts", lambda s: str(s["n"])),
         row("wall time of the evaluate process", lambda s: _time(s["wall"])),
@@ -803,19 +1032,36 @@ def format_section(r: dict[str, Any]) -> str:
         f"| rollouts the early stop shortened | {shortened} of {a['n']} |",
         f"| rollouts whose outcome it changed | {changed} |",
         f"| evaluation seeds | {seeds}, unseen split, `--seed {r['seed']}` |",
-        f"| expert check before both | {len(kept)} kept, {len(check['skipped'])} skipped "
-        f"({check['cached']} found in the cache), {_time(check['seconds'])} |",
+        *(
+            [f"| expert check before both | {_check(check)} |"]
+            if before_check is None
+            else [
+                f"| expert check before both, after's package {_package(packages['after'])} "
+                f"| {_check(check)} |",
+                f"| expert check before both, before's package {_package(packages['before'])} "
+                f"| {_check(before_check)} |",
+            ]
+        ),
         f"| workers, order | {r['workers']}, {' then '.join(r['order'])} |",
         *_policy_rows(r["policy"]),
         *([f"| reused from an earlier run | {', '.join(r['reused'])} |"] if r["reused"] else []),
         f"| commit | `{r['commit']}`{' (dirty)' if r['dirty'] else ''} |",
+        *(
+            [
+                f"| package of before | `--before {r['before']}`: "
+                f"{_package(packages['before'])}, run from a worktree of it (`git worktree add "
+                f"--detach TREE {r['before']}`, the commands in TREE, `PYTHONPATH=TREE`) |"
+            ]
+            if r.get("before")
+            else []
+        ),
         f"| date (UTC) | {r['date']} |",
         f"| machine | {r['machine']} |",
     ]
     first = r["per_seed"][0]["before"] if r["per_seed"] else None
     split = r.get("split")
     same_seed = first is not None and split is not None and first["seed"] == split["seed"]
-    lines += _split_lines(split, first["seconds"] if same_seed else None)
+    lines += _split_lines(split, first["seconds"] if same_seed else None, packages)
     lines += [
         "",
         "### Per seed",
@@ -860,6 +1106,13 @@ def write_section(out: Path, result: dict[str, Any]) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Run the benchmark; 0 when both evaluations ran on the same seeds."""
     args = parse_args(argv)
+    if args.before is not None and args.before_commit is None:
+        print(
+            f"error: --before {args.before}: not a commit of this repository (git rev-parse "
+            f"--verify {shlex.quote(args.before + '^{commit}')} failed)",
+            file=sys.stderr,
+        )
+        return 2
     from bicoord_drake.tasks import list_tasks
 
     if args.task not in list_tasks():
@@ -886,8 +1139,10 @@ def main(argv: list[str] | None = None) -> int:
         return 1
     write_section(args.out, result)
     b, a = result["stats"]["before"], result["stats"]["after"]
+    packages = result["packages"]
     print(
-        f"[bench_early_stop] before {_time(b['wall'])} ({_failures(b['failures'])}), after "
+        f"[bench_early_stop] before ({packages['before']['commit']}) {_time(b['wall'])} "
+        f"({_failures(b['failures'])}), after ({packages['after']['commit']}) "
         f"{_time(a['wall'])} ({_failures(a['failures'])}): {verdict(result['ratio'])} "
         f"({(time.perf_counter() - start) / 60:.1f} min); wrote {args.out}",
         flush=True,

@@ -2,8 +2,10 @@
 section (the steps faked: no physics, no training; the real run is the slow test at the end)."""
 
 import argparse
+import contextlib
 import json
 import shutil
+import subprocess
 import time
 
 import pytest
@@ -266,17 +268,36 @@ def fake_report(seeds, early_stop):
 
 
 class FakeRun(FakeSteps):
-    """policy_reproduces' fake steps (generation, export, training) and fake evaluations on
-    the seeds the expert check kept: 400 s without the early stop, 100 s with it."""
+    """policy_reproduces' fake steps (generation, export, training), the fake expert check in a
+    worktree of --before and fake evaluations on the seeds the expert check kept: 400 s without
+    the early stop, 100 s with it. `where`: per step its working directory and PYTHONPATH (None:
+    baselines.run's own environment); a step in `fail` fails."""
 
-    def __call__(self, command, log):
-        if command[1] != "scripts/evaluate.py":
+    def __init__(self, tmp_path, successes):
+        super().__init__(tmp_path, successes)
+        self.where = {}
+        self.fail = set()
+
+    def __call__(self, command, log, *, cwd=None, env=None):
+        if command[1] == "-c":
+            step = "check_before"
+        elif command[1] == "scripts/evaluate.py":
+            step = "before" if "--no-early-stop" in command else "after"
+        else:
             return super().__call__(command, log)
         log.parent.mkdir(parents=True, exist_ok=True)
-        early_stop = "--no-early-stop" not in command
-        self.calls.append("after" if early_stop else "before")
-        report = fake_report(SEEDS[: int(command[command.index("--episodes") + 1])], early_stop)
-        return json.dumps(report), 100.0 if early_stop else 400.0
+        self.calls.append(step)
+        present = cwd is not None and (cwd / "benchmarks" / "bench_early_stop.py").exists()
+        self.where[step] = (cwd, None if env is None else env["PYTHONPATH"], present)
+        if step in self.fail:
+            raise RuntimeError(f"{step} failed")
+        if step == "check_before":
+            episodes = int(command[-3])
+            return "a warning\n" + json.dumps(fake_check(argparse.Namespace(episodes=episodes))), 9
+        report = fake_report(
+            SEEDS[: int(command[command.index("--episodes") + 1])], step == "after"
+        )
+        return json.dumps(report), 100.0 if step == "after" else 400.0
 
 
 def fake_check(config):
@@ -455,6 +476,233 @@ def test_main_writes_the_section(bes, tmp_path, faked, monkeypatch, capsys):
     assert bes.main(run_argv(tmp_path, "--out", str(out))) == 0
     assert "goal met" in out.read_text()
     assert "after/before wall time 0.25" in capsys.readouterr().out
+
+
+# --------------------------------------------------------------------------- --before
+#: A tree's benchmarks/bench_early_stop.py as --before needs it (b96629b or later): its own
+#: expert check; it reports which bicoord_drake it imported.
+TREE_SCRIPT = """\
+import bicoord_drake
+
+
+def evaluation_config(task, checkpoint, args, early_stop):
+    return (task, str(checkpoint), args.episodes, args.seed, args.workers, early_stop)
+
+
+def warm_expert_check(config):
+    print("the check's own output")
+    return {"kept": [bicoord_drake.__file__], "skipped": list(config), "cached": 0, "seconds": 1}
+"""
+
+
+def make_tree(tree, script=TREE_SCRIPT):
+    """A stand-in for a checked-out revision: its benchmark script and package."""
+    (tree / "benchmarks").mkdir(parents=True)
+    (tree / "benchmarks" / "bench_early_stop.py").write_text(script)
+    (tree / "bicoord_drake").mkdir()
+    (tree / "bicoord_drake" / "__init__.py").write_text("")
+    return tree
+
+
+@pytest.fixture
+def fake_worktree(bes, tmp_path, monkeypatch):
+    """bes.worktree without git: a stand-in tree; the commits checked out, then 'removed'."""
+    events = []
+
+    @contextlib.contextmanager
+    def worktree(commit):
+        if commit is None:
+            yield None
+            return
+        tree = make_tree(tmp_path / "trees" / commit / "tree")
+        events.append(commit)
+        try:
+            yield tree
+        finally:
+            shutil.rmtree(tree)
+            events.append("removed")
+
+    monkeypatch.setattr(bes, "worktree", worktree)
+    return events
+
+
+def git(repo, *args):
+    return subprocess.run(
+        ["git", "-c", "user.name=t", "-c", "user.email=t@t", *args],
+        cwd=repo,
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
+
+
+def test_before_is_resolved_to_a_commit(bes, capsys):
+    head = bes.revision("HEAD")
+    assert head and head == git(bes.ROOT, "rev-parse", "--short", "HEAD")
+    assert bes.parse_args([]).before is None and bes.parse_args([]).before_commit is None
+    args = bes.parse_args(["--before", "HEAD"])
+    assert (args.before, args.before_commit) == ("HEAD", head)
+    assert bes.revision("no-such-revision") is None
+    assert bes.revision("HEAD:README.md") is None  # a file, not a commit
+    with pytest.raises(SystemExit):
+        bes.parse_args(["--help"])
+    shown = " ".join(capsys.readouterr().out.split())
+    example = "bench_early_stop.py --checkpoint DIR --before 512374c --episodes 50 --workers 2"
+    assert f"{example} --split" in shown
+    assert example in " ".join(bes.__doc__.replace("\\\n", " ").split())
+
+
+def test_an_unknown_before_exits_2_naming_it(bes, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(bes.baselines, "run", lambda *a, **k: pytest.fail("a step ran"))
+    monkeypatch.setattr(bes, "worktree", lambda commit: pytest.fail("a worktree was made"))
+    out = tmp_path / "out.md"
+    argv = ["--before", "no-such-rev", "--work", str(tmp_path / "work"), "--out", str(out)]
+    assert bes.main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--before no-such-rev" in err and len(err.strip().splitlines()) == 1
+    assert not out.exists() and not (tmp_path / "work").exists()
+
+
+def test_before_runs_in_a_worktree_of_the_revision(bes, tmp_path, faked, fake_worktree):
+    ckpt = tmp_path / "ckpt"
+    ckpt.mkdir()
+    args = bes.parse_args(run_argv(tmp_path, "--checkpoint", str(ckpt), "--before", "HEAD~1"))
+    result = bes.run(TASK, args, "python benchmarks/bench_early_stop.py --before HEAD~1")
+    old = bes.revision("HEAD~1")
+    tree = tmp_path / "trees" / old / "tree"
+    assert faked.calls == ["check_before", "before", "after"]
+    assert fake_worktree == [old, "removed"]
+    for step in ("check_before", "before"):
+        cwd, pythonpath, present = faked.where[step]
+        assert cwd == tree and present  # the tree, checked out while it runs
+        assert pythonpath.split(bes.os.pathsep)[0] == str(tree)
+        assert str(bes.ROOT) not in pythonpath.split(bes.os.pathsep)
+    assert faked.where["after"] == (bes.ROOT, None, True)  # this checkout, as baselines.run
+    assert result["expert_check"] == fake_check(args)
+    assert result["expert_check_before"] == fake_check(args)
+    assert result["before"] == "HEAD~1"
+    assert result["packages"]["before"] == {"commit": old, "dirty": False}
+    assert result["packages"]["after"]["commit"] == result["commit"] != old
+    shown = result["commands"]["evaluate_before"]
+    assert (
+        "run from a worktree of HEAD~1" in shown
+        and "git worktree add --detach TREE HEAD~1" in shown
+    )
+    assert "cd TREE && PYTHONPATH=TREE python scripts/evaluate.py" in shown
+    assert result["commands"]["evaluate_after"].startswith("python scripts/evaluate.py")
+    record = json.loads(bes.paths_of(TASK, args).runs["before"].read_text())
+    assert (record["package"], record["package_dirty"], record["worktree"]) == (old, False, True)
+
+
+def test_the_tree_check_runs_that_trees_code_and_package(bes, tmp_path):
+    """TREE_CHECK for real (a subprocess, no physics): the tree's script and bicoord_drake."""
+    tree = make_tree(tmp_path / "tree")
+    package = bes.Package("abc1234", tree=tree, rev="abc1234")
+    args = bes.parse_args(["--episodes", "4", "--seed", "2", "--workers", "3"])
+    check = bes.warm_tree_check(TASK, tmp_path / "ckpt", args, package, tmp_path / "check.log")
+    assert check["kept"] == [str(tree / "bicoord_drake" / "__init__.py")]
+    assert check["skipped"] == [TASK, str(tmp_path / "ckpt"), 4, 2, 3, False]
+    assert (check["cached"], check["seconds"]) == (0, 1)
+    assert (tmp_path / "check.log").read_text().startswith(f"$ cd {tree} && PYTHONPATH={tree}")
+
+
+@pytest.mark.parametrize(
+    "script", ["", "def evaluation_config():\n    pass\n", TREE_SCRIPT.replace("1}", "1")]
+)
+def test_a_revision_without_the_tree_check_is_named(bes, tmp_path, script):
+    tree = make_tree(tmp_path / "tree", script)
+    package = bes.Package("abc1234", tree=tree, rev="old")
+    args = bes.parse_args([])
+    with pytest.raises(RuntimeError) as err:
+        bes.warm_tree_check(TASK, tmp_path / "ckpt", args, package, tmp_path / "check.log")
+    assert "--before old" in str(err.value) and "b96629b or later" in str(err.value)
+
+
+def test_a_record_of_another_package_is_not_reused(bes, tmp_path, faked, fake_worktree):
+    ckpt = tmp_path / "ckpt"
+    ckpt.mkdir()
+    plain = bes.parse_args(run_argv(tmp_path, "--checkpoint", str(ckpt)))
+    before = bes.parse_args(run_argv(tmp_path, "--checkpoint", str(ckpt), "--before", "HEAD~1"))
+    bes.run(TASK, plain, "x")
+    assert faked.calls == ["before", "after"]
+    assert bes.run(TASK, before, "x")["reused"] == ["after"]  # before: another package
+    assert faked.calls[2:] == ["check_before", "before"]
+    assert bes.run(TASK, before, "x")["reused"] == ["before", "after"]
+    assert bes.run(TASK, plain, "x")["reused"] == ["after"]  # and back
+    assert faked.calls[5:] == ["before"]
+
+    runs = bes.paths_of(TASK, plain).runs
+    record = json.loads(runs["after"].read_text())
+    runs["after"].write_text(json.dumps({**record, "package": "0000000"}))  # another commit
+    bes.run(TASK, plain, "x")
+    runs["after"].write_text(json.dumps({**record, "package_dirty": not record["package_dirty"]}))
+    bes.run(TASK, plain, "x")
+    assert faked.calls[6:] == ["after", "after"]
+
+
+def test_section_names_both_revisions(bes, tmp_path, faked, fake_worktree):
+    args = bes.parse_args(run_argv(tmp_path, "--before", "HEAD~1"))
+    text = bes.format_section(bes.run(TASK, args, "python benchmarks/bench_early_stop.py"))
+    old = bes.revision("HEAD~1")
+    head = bes.revision("HEAD")
+    dirty = ", dirty" if bes.expert_success.git_state(bes.ROOT)[1] else ""
+    assert (
+        f"| | before (`{old}`, `--no-early-stop`) | after (`{head}`{dirty}, early stop) |" in text
+    )
+    assert "**after/before wall time 0.25 (goal: <= 1/3): goal met.**" in text
+    assert f"| package of before | `--before HEAD~1`: `{old}`, run from a worktree of it" in text
+    check = "3 kept, 1 skipped (1 found in the cache), 30.0 s"
+    assert f"| expert check before both, after's package `{head}`{dirty} | {check} |" in text
+    assert f"| expert check before both, before's package `{old}` | {check} |" in text
+    assert "run from a worktree of HEAD~1" in text[text.index("```bash") :]
+
+    plain = bes.format_section(bes.run(TASK, bes.parse_args(run_argv(tmp_path)), "x"))
+    assert f"| | before (`{head}`{dirty}, `--no-early-stop`) |" in plain
+    assert "package of before" not in plain and "worktree" not in plain
+
+
+def test_the_worktree_is_removed_even_when_the_evaluation_fails(bes, tmp_path, faked, monkeypatch):
+    """bes.worktree for real, in a repository of its own."""
+    repo = tmp_path / "repo"
+    repo.mkdir()
+    git(repo, "init", "-q")
+    make_tree(repo)
+    git(repo, "add", ".")
+    git(repo, "commit", "-q", "-m", "a revision")
+    monkeypatch.setattr(bes, "ROOT", repo)  # where git resolves --before and adds the tree
+    ckpt = tmp_path / "ckpt"
+    ckpt.mkdir()
+    args = bes.parse_args(run_argv(tmp_path, "--checkpoint", str(ckpt), "--before", "HEAD"))
+    assert args.before_commit == git(repo, "rev-parse", "--short", "HEAD")
+
+    faked.fail = {"before"}
+    with pytest.raises(RuntimeError, match="before failed"):
+        bes.run(TASK, args, "x")
+    tree, pythonpath, present = faked.where["before"]
+    assert present and tree.name == "tree" and pythonpath.startswith(str(tree))
+    assert not tree.exists() and not tree.parent.exists()
+    assert git(repo, "worktree", "list").count("\n") == 0  # only the repository itself
+
+    faked.fail = set()
+    bes.run(TASK, args, "x")
+    assert not faked.where["before"][0].exists()
+    assert git(repo, "worktree", "list").count("\n") == 0
+
+
+def test_a_worktree_of_an_old_revision_stops_before_anything_runs(
+    bes, tmp_path, faked, monkeypatch
+):
+    @contextlib.contextmanager
+    def worktree(commit):
+        tree = tmp_path / "old" / "tree"
+        (tree / "benchmarks").mkdir(parents=True)  # no bench_early_stop.py
+        yield tree
+
+    monkeypatch.setattr(bes, "worktree", worktree)
+    args = bes.parse_args(run_argv(tmp_path, "--before", "HEAD~1"))
+    with pytest.raises(RuntimeError, match=r"--before HEAD~1: the revision needs .*\(b96629b"):
+        bes.run(TASK, args, "x")
+    assert faked.calls == []  # no training, no check, no evaluation
 
 
 @pytest.mark.slow
