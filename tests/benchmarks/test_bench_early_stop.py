@@ -195,10 +195,12 @@ def test_the_split_names_physics_act_and_the_rest(bes):
     assert result == "done"
     parts = {p["part"]: p for p in split["parts"]}
     seconds = {name: p["seconds"] for name, p in parts.items()}
-    assert seconds[bes.PHYSICS] == pytest.approx(0.06, abs=0.03)
-    assert seconds[bes.ACT] == pytest.approx(0.03, abs=0.02)
-    assert seconds[bes.ENV_STEP] == pytest.approx(0.015, abs=0.015)
-    assert seconds[bes.ENV_RESET] == pytest.approx(0.01, abs=0.01)
+    # Each part holds at least the sleeps made in it (a sleep never ends early; on a loaded
+    # machine it may end late, so no upper bounds).
+    assert seconds[bes.PHYSICS] >= 0.055
+    assert seconds[bes.ACT] >= 0.027
+    assert seconds[bes.ENV_RESET] >= 0.009
+    assert seconds[bes.ENV_STEP] >= 0.013
     shares = [parts[name]["share"] for name in (bes.PHYSICS, bes.ACT, bes.REST)]
     assert sum(shares) == pytest.approx(1.0, abs=1e-3)  # the three parts are the whole
     rest = seconds[bes.ENV_STEP] + seconds[bes.ENV_RESET] + seconds[bes.OTHER]
