@@ -119,18 +119,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
 
 
 def resolve(rev: str, root: Path = ROOT) -> str | None:
-    """The short hash of the commit `rev` names (``git rev-parse --verify REV^{commit}``), None
-    when git cannot resolve it."""
-    try:
-        out = subprocess.run(
-            ["git", "rev-parse", "--verify", "--quiet", "--short", f"{rev}^{{commit}}"],
-            cwd=root,
-            capture_output=True,
-            text=True,
-        )
-    except OSError:
-        return None
-    return out.stdout.strip() if out.returncode == 0 and out.stdout.strip() else None
+    """The short hash of the commit `rev` names; None when git cannot resolve it."""
+    return sibling("expert_success").short_commit_of(rev, root)
 
 
 # --------------------------------------------------------------------------- one measurement

@@ -131,6 +131,16 @@ def git_state(root: Path = ROOT) -> tuple[str, bool]:
     return head.stdout.strip(), bool(status.stdout.strip())
 
 
+def short_commit_of(rev: str, root: Path = ROOT) -> str | None:
+    """The short hash of the commit `rev` names (``git rev-parse --verify REV^{commit}``);
+    None when git cannot resolve it to a commit."""
+    try:
+        out = _git(root, "rev-parse", "--verify", "--quiet", "--short", f"{rev}^{{commit}}")
+    except OSError:
+        return None
+    return out.stdout.strip() if out.returncode == 0 and out.stdout.strip() else None
+
+
 def code_changed(old: str, new: str, root: Path = ROOT) -> bool:
     """Whether the package differs between two commits (True if git cannot tell)."""
     if old == new:
