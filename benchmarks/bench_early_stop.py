@@ -17,8 +17,8 @@ checkout's package; with ``--before REV`` the one without the early stop runs th
 git revision REV instead (the issue's "current commit", against this one): REV is checked out
 with ``git worktree add --detach TMP/tree REV`` and ``scripts/evaluate.py`` runs there (working
 directory the tree, the tree first on ``PYTHONPATH``), still with ``--no-early-stop``; the
-worktree is removed at the end, also on an error. REV needs ``benchmarks/bench_early_stop.py``
-with ``warm_expert_check`` (b96629b or later). The steps:
+worktree is removed at the end, also on an error (``expert_success.worktree``). REV needs
+``benchmarks/bench_early_stop.py`` with ``warm_expert_check`` (b96629b or later). The steps:
 
 1. the failing policy: ``--checkpoint DIR`` (a lerobot-train output directory), or one trained
    here as ``benchmarks/policy_reproduces.py`` trains (its commands, paths and
@@ -72,12 +72,9 @@ import re
 import shlex
 import shutil
 import statistics
-import subprocess
 import sys
-import tempfile
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -279,31 +276,6 @@ class Package:
 def revision(rev: str) -> str | None:
     """The short hash of the commit `rev` names; None when git cannot resolve it."""
     return expert_success.short_commit_of(rev, ROOT)
-
-
-@contextmanager
-def worktree(commit: str | None) -> Iterator[Path | None]:
-    """A detached ``git worktree`` of `commit` in a temporary directory, removed (``git worktree
-    remove --force``) on the way out, also on an error; None without a commit."""
-    if commit is None:
-        yield None
-        return
-    tree = Path(tempfile.mkdtemp(prefix="bench-early-stop-")) / "tree"
-    try:
-        out = subprocess.run(
-            ["git", "worktree", "add", "--detach", str(tree), commit],
-            cwd=ROOT,
-            capture_output=True,
-            text=True,
-        )
-        if out.returncode != 0:
-            raise RuntimeError(f"git worktree add {commit} failed: {out.stderr.strip()}")
-        yield tree
-    finally:
-        subprocess.run(
-            ["git", "worktree", "remove", "--force", str(tree)], cwd=ROOT, capture_output=True
-        )
-        shutil.rmtree(tree.parent, ignore_errors=True)
 
 
 def packages_of(args: argparse.Namespace, tree: Path | None, here: Package) -> dict[str, Package]:
@@ -815,7 +787,8 @@ def run(task: str, args: argparse.Namespace, run_command: str) -> dict[str, Any]
     start_commit, dirty = expert_success.git_state(ROOT)
     here = Package(policy_reproduces.short_commit(start_commit), dirty)
 
-    with worktree(args.before_commit) as tree:  # removed at the end, also on an error
+    # removed at the end, also on an error
+    with expert_success.worktree(args.before_commit, "bench-early-stop-", ROOT) as tree:
         packages = packages_of(args, tree, here)
         if tree is not None:
             _say(1, f"before: the package of {args.before_commit}, a worktree in {tree}")

@@ -24,11 +24,12 @@ stdout line: one JSON object), ``--repeats`` times (5) per package; the table gi
 medians (the drift: the largest). The package measured is this checkout's (``PYTHONPATH`` =
 this checkout, run from it) and, with ``--before REV``, also that of git revision REV,
 checked out with ``git worktree add --detach TMP/tree REV`` (removed at the end, also on an
-error) and measured by this same file with that tree first on ``PYTHONPATH`` and as working
-directory, so both go through identical code. The two packages alternate (before, after,
-before, after, ...) so that the machine's load hits both alike; the ratio before/after of the
-CPU ms per control step is reported. A REV that git cannot resolve to a commit exits 2 before
-anything is measured. ``--tasks a,b`` gives one row per task and package.
+error: ``expert_success.worktree``) and measured by this same file with that tree first on
+``PYTHONPATH`` and as working directory, so both go through identical code. The two packages
+alternate (before, after, before, after, ...) so that the machine's load hits both alike; the
+ratio before/after of the CPU ms per control step is reported. A REV that git cannot resolve
+to a commit exits 2 before anything is measured, one that git cannot check out exits 1.
+``--tasks a,b`` gives one row per task and package.
 
 The table is printed; with ``--out FILE`` each task's section ``## <task> (seed S,
 <embodiment>)`` of FILE is replaced (or appended; other sections kept; a temporary file, then
@@ -44,12 +45,12 @@ import importlib
 import json
 import os
 import shlex
-import shutil
 import statistics
 import subprocess
 import sys
 import time
 from collections.abc import Callable, Iterable
+from contextlib import ExitStack
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -78,7 +79,7 @@ Runner = Callable[..., subprocess.CompletedProcess]
 
 
 def sibling(name: str) -> ModuleType:
-    """``benchmarks/<name>.py`` (expert_success, bench_throughput), imported when first used:
+    """``benchmarks/<name>.py`` (expert_success), imported when first used:
     not at the top, since expert_success puts this checkout first on ``sys.path`` and a
     ``--measure-json`` process must import the package its ``PYTHONPATH`` names."""
     if str(BENCHMARKS) not in sys.path:
@@ -418,12 +419,6 @@ def packages_of(tree: Path | None, before: str | None) -> list[Package]:
     return [Package("before", tree, before), Package("after", ROOT, head[:7], dirty)]
 
 
-def remove_worktree(tree: Path) -> None:
-    """Remove the worktree of ``--before`` and its temporary directory."""
-    subprocess.run(["git", "worktree", "remove", "--force", str(tree)], cwd=ROOT)
-    shutil.rmtree(tree.parent, ignore_errors=True)
-
-
 def run(
     args: argparse.Namespace,
     packages: list[Package],
@@ -459,8 +454,9 @@ def run(
 
 
 def main(argv: list[str] | None = None) -> int:
-    """The command: 0, 1 when a task object drifted or a measurement failed, 2 for bad
-    arguments (an unknown task, a --before that git cannot resolve)."""
+    """The command: 0, 1 when a task object drifted, a measurement failed or git could not
+    check --before out, 2 for bad arguments (an unknown task, a --before that git cannot
+    resolve)."""
     args = parse_args(argv)
     if args.measure_json:
         result = measure(args.tasks[0], args.seed, args.embodiment, args.warmup, args.steps)
@@ -487,20 +483,17 @@ def main(argv: list[str] | None = None) -> int:
     command = "python benchmarks/bench_rest_cost.py " + shlex.join(
         sys.argv[1:] if argv is None else argv
     )
-    try:
-        tree = sibling("bench_throughput").checkout(before) if before else None
-    except subprocess.CalledProcessError as err:
-        why = err.stderr.decode(errors="replace").strip()
-        print(f"error: git worktree add {before} failed: {why}", file=sys.stderr)
-        return 1
-    try:
-        rows, moved = run(args, packages_of(tree, before), command.strip())
-    except RuntimeError as err:
-        print(f"[bench_rest_cost] error: {err}", file=sys.stderr)
-        return 1
-    finally:
-        if tree is not None:
-            remove_worktree(tree)
+    with ExitStack() as cleanup:  # the worktree of --before, removed also on an error
+        try:
+            tree = cleanup.enter_context(expert_success.worktree(before, "bench-rest-cost-", ROOT))
+        except RuntimeError as err:  # git worktree add failed: err names REV and git's message
+            print(f"error: {err}", file=sys.stderr)
+            return 1
+        try:
+            rows, moved = run(args, packages_of(tree, before), command.strip())
+        except RuntimeError as err:
+            print(f"[bench_rest_cost] error: {err}", file=sys.stderr)
+            return 1
     print()
     print(table(rows))
     if args.out is not None:

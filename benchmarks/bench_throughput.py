@@ -11,16 +11,18 @@ is the sum of the workers' per-seed timings in the run's ``manifest.json`` (work
 with 2 workers it adds up to about twice the wall time).
 
 ``--before REV`` also measures another commit, checked out with ``git worktree`` into a
-temporary directory, interleaved with this checkout (same seeds, same background load): the
-"before" of a speed change. The 1-minute load average is recorded before every run; compare
-ratios within one run, not figures across machines or days. With ``--before`` a second table
-gives, per task and setting, the ratio after/before of the whole run's rate and of the physics
-phase alone (simulated seconds per worker second spent stepping the plant), and their medians.
+temporary directory (removed at the end, also on an error: ``expert_success.worktree``),
+interleaved with this checkout (same seeds, same background load): the "before" of a speed
+change. The 1-minute load average is recorded before every run; compare ratios within one
+run, not figures across machines or days. With ``--before`` a second table gives, per task and
+setting, the ratio after/before of the whole run's rate and of the physics phase alone
+(simulated seconds per worker second spent stepping the plant), and their medians.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import platform
@@ -34,6 +36,9 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.append(str(Path(__file__).resolve().parent))  # the other benchmark scripts, last
+
+expert_success = importlib.import_module("expert_success")
 
 
 def measure(tree: Path, task: str, episodes: int, seed: int, workers: int, render: bool) -> dict:
@@ -77,17 +82,6 @@ def measure(tree: Path, task: str, episodes: int, seed: int, workers: int, rende
         "split": split,
         "load": load,
     }
-
-
-def checkout(rev: str) -> Path:
-    tree = Path(tempfile.mkdtemp(prefix="bench-before-")) / "tree"
-    subprocess.run(
-        ["git", "worktree", "add", "--detach", str(tree), rev],
-        cwd=ROOT,
-        check=True,
-        capture_output=True,
-    )
-    return tree
 
 
 def revision(tree: Path) -> str:
@@ -188,9 +182,6 @@ def main() -> None:
     parser.add_argument("--out", type=Path, help="markdown file to write (default: print)")
     args = parser.parse_args()
 
-    trees = [ROOT]
-    if args.before:
-        trees.insert(0, checkout(args.before))
     mode = "both" if args.no_render_too else args.render
     renders = {"yes": [True], "no": [False], "both": [True, False]}[mode]
     tasks = args.tasks.split(",")
@@ -199,7 +190,8 @@ def main() -> None:
 
         tasks = list(list_tasks())
     rows = []
-    try:
+    with expert_success.worktree(args.before or None, "bench-before-", ROOT) as before:
+        trees = [ROOT] if before is None else [before, ROOT]
         for task in tasks:
             for render in renders:
                 for workers in (int(w) for w in args.workers.split(",")):
@@ -217,14 +209,11 @@ def main() -> None:
                             "render": render,
                             "workers": workers,
                             "commit": revision(tree),
-                            "before": bool(args.before) and tree == trees[0],
+                            "before": tree == before,
                             "rate": statistics.median(r["rate"] for r in results),
                         }
                         rows.append(row)
                         print(table([row]).splitlines()[-1], flush=True)
-    finally:
-        if args.before:
-            subprocess.run(["git", "worktree", "remove", "--force", str(trees[0])], cwd=ROOT)
     text = "\n".join(
         [
             f"Measured {datetime.now(UTC):%Y-%m-%d %H:%M} UTC on {platform.machine()}, "

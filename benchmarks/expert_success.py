@@ -30,11 +30,14 @@ import logging
 import os
 import platform
 import re
+import shutil
 import subprocess
 import sys
 import tempfile
 import time
 from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -139,6 +142,26 @@ def short_commit_of(rev: str, root: Path = ROOT) -> str | None:
     except OSError:
         return None
     return out.stdout.strip() if out.returncode == 0 and out.stdout.strip() else None
+
+
+@contextmanager
+def worktree(rev: str | None, prefix: str, root: Path = ROOT) -> Iterator[Path | None]:
+    """A detached ``git worktree`` of `rev` (``git worktree add --detach TMP/tree REV``, TMP a
+    temporary directory named with `prefix`), removed with TMP (``git worktree remove
+    --force``) on the way out, also on an error; None without a revision. RuntimeError naming
+    `rev` and git's message when git cannot add it."""
+    if rev is None:
+        yield None
+        return
+    tree = Path(tempfile.mkdtemp(prefix=prefix)) / "tree"
+    try:
+        out = _git(root, "worktree", "add", "--detach", str(tree), rev)
+        if out.returncode != 0:
+            raise RuntimeError(f"git worktree add {rev} failed: {out.stderr.strip()}")
+        yield tree
+    finally:
+        _git(root, "worktree", "remove", "--force", str(tree))
+        shutil.rmtree(tree.parent, ignore_errors=True)
 
 
 def code_changed(old: str, new: str, root: Path = ROOT) -> bool:

@@ -508,11 +508,13 @@ def make_tree(tree, script=TREE_SCRIPT):
 
 @pytest.fixture
 def fake_worktree(bes, tmp_path, monkeypatch):
-    """bes.worktree without git: a stand-in tree; the commits checked out, then 'removed'."""
+    """expert_success.worktree without git: a stand-in tree; the commits checked out, then
+    'removed'."""
     events = []
 
     @contextlib.contextmanager
-    def worktree(commit):
+    def worktree(commit, prefix, root):
+        assert (prefix, root) == ("bench-early-stop-", bes.ROOT)
         if commit is None:
             yield None
             return
@@ -524,7 +526,7 @@ def fake_worktree(bes, tmp_path, monkeypatch):
             shutil.rmtree(tree)
             events.append("removed")
 
-    monkeypatch.setattr(bes, "worktree", worktree)
+    monkeypatch.setattr(bes.expert_success, "worktree", worktree)
     return events
 
 
@@ -556,7 +558,7 @@ def test_before_is_resolved_to_a_commit(bes, capsys):
 
 def test_an_unknown_before_exits_2_naming_it(bes, tmp_path, monkeypatch, capsys):
     monkeypatch.setattr(bes.baselines, "run", lambda *a, **k: pytest.fail("a step ran"))
-    monkeypatch.setattr(bes, "worktree", lambda commit: pytest.fail("a worktree was made"))
+    monkeypatch.setattr(bes.expert_success, "worktree", lambda *a: pytest.fail("a worktree"))
     out = tmp_path / "out.md"
     argv = ["--before", "no-such-rev", "--work", str(tmp_path / "work"), "--out", str(out)]
     assert bes.main(argv) == 2
@@ -664,7 +666,7 @@ def test_section_names_both_revisions(bes, tmp_path, faked, fake_worktree):
 
 
 def test_the_worktree_is_removed_even_when_the_evaluation_fails(bes, tmp_path, faked, monkeypatch):
-    """bes.worktree for real, in a repository of its own."""
+    """expert_success.worktree for real, in a repository of its own."""
     repo = tmp_path / "repo"
     repo.mkdir()
     git(repo, "init", "-q")
@@ -695,12 +697,12 @@ def test_a_worktree_of_an_old_revision_stops_before_anything_runs(
     bes, tmp_path, faked, monkeypatch
 ):
     @contextlib.contextmanager
-    def worktree(commit):
+    def worktree(commit, prefix, root):
         tree = tmp_path / "old" / "tree"
         (tree / "benchmarks").mkdir(parents=True)  # no bench_early_stop.py
         yield tree
 
-    monkeypatch.setattr(bes, "worktree", worktree)
+    monkeypatch.setattr(bes.expert_success, "worktree", worktree)
     args = bes.parse_args(run_argv(tmp_path, "--before", "HEAD~1"))
     with pytest.raises(RuntimeError, match=r"--before HEAD~1: the revision needs .*\(b96629b"):
         bes.run(TASK, args, "x")

@@ -1,10 +1,12 @@
-"""benchmarks/bench_rest_cost.py: its arguments, the exit for a --before git cannot resolve, the
-packages taking turns, medians and ratio, the face breakdown by body pair and its Markdown
-section (the measuring processes faked: no physics)."""
+"""benchmarks/bench_rest_cost.py: its arguments, the exit for a --before git cannot resolve or
+check out, its worktree removed at the end, the packages taking turns, medians and ratio, the
+face breakdown by body pair and its Markdown section (the measuring processes faked: no
+physics)."""
 
 import argparse
 import json
 import subprocess
+import tempfile
 from pathlib import Path
 
 import pytest
@@ -81,6 +83,42 @@ def test_a_real_revision_resolves_to_its_short_hash(brc):
     ).stdout.strip()
     short = brc.resolve("HEAD")
     assert short and head.startswith(short)
+
+
+def test_a_revision_git_cannot_check_out_exits_1_naming_it(brc, tmp_path, monkeypatch, capsys):
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # the worktree's temporary directory
+    monkeypatch.setattr(brc, "resolve", lambda rev, root=brc.ROOT: "no-such-revision")
+    monkeypatch.setattr(brc, "run", _no_measurement)
+    assert brc.main(["--task", TASK, "--before", "no-such-revision"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[0].startswith("error: git worktree add no-such-revision failed: fatal:")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("fails", [False, True])
+def test_the_worktree_of_before_is_removed_at_the_end(brc, tmp_path, monkeypatch, capsys, fails):
+    """expert_success.worktree for real, of HEAD; the measurements faked."""
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # the worktree's temporary directory
+    seen = []
+
+    def run(args, packages, command):
+        seen.extend((p.label, p.tree, p.tree.is_dir()) for p in packages)
+        if fails:
+            raise RuntimeError("a measurement failed")
+        return [], False
+
+    monkeypatch.setattr(brc, "run", run)
+    assert brc.main(["--task", TASK, "--before", "HEAD"]) == (1 if fails else 0)
+    (before, tree, present), (after, here, _) = seen
+    assert (before, after, here) == ("before", "after", brc.ROOT) and present
+    assert tree.parent.parent == tmp_path and not tree.parent.exists()
+    listed = subprocess.run(
+        ["git", "worktree", "list", "--porcelain"], cwd=brc.ROOT, capture_output=True, text=True
+    ).stdout
+    assert f"worktree {tree.resolve()}\n" not in listed
+    assert list(tmp_path.iterdir()) == []
+    err = capsys.readouterr().err
+    assert ("[bench_rest_cost] error: a measurement failed" in err) == fails
 
 
 def result(package: Path, cpu: float, faces: int = 10, drift: float = 0.0) -> dict:
