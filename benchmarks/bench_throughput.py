@@ -1,7 +1,8 @@
 """Generation throughput: simulated seconds of kept demonstrations per wall second.
 
     python benchmarks/bench_throughput.py --tasks jigsaw,cook --episodes 4 --workers 1,2 \\
-        [--render yes|no|both] [--before REV] [--repeats 1] [--out benchmarks/bench_throughput.md]
+        [--render yes|no|both] [--before REV] [--repeats 1] [--embodiment aloha_viperx] \\
+        [--out benchmarks/bench_throughput.md]
 
 Every measurement is one run of ``scripts/generate.py`` as a user runs it (a fresh process, so
 startup is included) on the same seeds: ``--seed`` upward until ``--episodes`` are kept. Its
@@ -36,13 +37,24 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+#: The robot generate.py uses without --embodiment.
+DEFAULT_ROBOT = "aloha_viperx"
 sys.path.append(str(Path(__file__).resolve().parent))  # the other benchmark scripts, last
 
 expert_success = importlib.import_module("expert_success")
 
 
-def measure(tree: Path, task: str, episodes: int, seed: int, workers: int, render: bool) -> dict:
-    """One generate.py run in `tree`; its wall time, kept simulated seconds and phase split."""
+def measure(
+    tree: Path,
+    task: str,
+    episodes: int,
+    seed: int,
+    workers: int,
+    render: bool,
+    embodiment: str = DEFAULT_ROBOT,
+) -> dict:
+    """One generate.py run in `tree` (on `embodiment`); its wall time, kept simulated seconds
+    and phase split."""
     out = Path(tempfile.mkdtemp(prefix="bench-throughput-"))
     cmd = [
         sys.executable,
@@ -56,14 +68,17 @@ def measure(tree: Path, task: str, episodes: int, seed: int, workers: int, rende
     ]
     if not render:
         cmd.append("--no-render")
+    if embodiment != DEFAULT_ROBOT:
+        cmd.append(f"--embodiment={embodiment}")
     env = {**os.environ, "PYTHONPATH": str(tree)}
     load = os.getloadavg()[0]
     t0 = time.perf_counter()
     run = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True)
     wall = time.perf_counter() - t0
-    manifest_path = out / task / "default" / "manifest.json"
-    if not manifest_path.exists():
+    manifests = sorted((out / task).glob("*/manifest.json"))  # one settings directory
+    if not manifests:
         raise RuntimeError(f"{' '.join(cmd)} wrote no manifest:\n{run.stderr[-2000:]}")
+    manifest_path = manifests[0]
     manifest = json.loads(manifest_path.read_text())
     shutil.rmtree(out, ignore_errors=True)
     fps = float(manifest["config"].get("fps", 15.0))
@@ -179,6 +194,11 @@ def main() -> None:
     )
     parser.add_argument("--no-render-too", action="store_true", help="same as --render both")
     parser.add_argument("--before", help="also measure this git revision (the 'before')")
+    parser.add_argument(
+        "--embodiment",
+        default=DEFAULT_ROBOT,
+        help=f"the robot (default {DEFAULT_ROBOT}); --tasks all: the tasks it supports",
+    )
     parser.add_argument("--out", type=Path, help="markdown file to write (default: print)")
     args = parser.parse_args()
 
@@ -186,9 +206,9 @@ def main() -> None:
     renders = {"yes": [True], "no": [False], "both": [True, False]}[mode]
     tasks = args.tasks.split(",")
     if args.tasks == "all":
-        from bicoord_drake.tasks import list_tasks
+        from bicoord_drake.tasks.registry import tasks_for_robot
 
-        tasks = list(list_tasks())
+        tasks = tasks_for_robot(args.embodiment)
     rows = []
     with expert_success.worktree(args.before or None, "bench-before-", ROOT) as before:
         trees = [ROOT] if before is None else [before, ROOT]
@@ -199,7 +219,15 @@ def main() -> None:
                     for k in range(args.repeats):
                         for tree in trees if k % 2 == 0 else trees[::-1]:
                             runs[tree].append(
-                                measure(tree, task, args.episodes, args.seed, workers, render)
+                                measure(
+                                    tree,
+                                    task,
+                                    args.episodes,
+                                    args.seed,
+                                    workers,
+                                    render,
+                                    args.embodiment,
+                                )
                             )
                     for tree, results in runs.items():
                         median = sorted(results, key=lambda r: r["rate"])[len(results) // 2]
@@ -219,7 +247,8 @@ def main() -> None:
             f"Measured {datetime.now(UTC):%Y-%m-%d %H:%M} UTC on {platform.machine()}, "
             f"nproc = {os.cpu_count()}, Python {platform.python_version()}; "
             f"{args.episodes} kept episodes per run from seed {args.seed}, "
-            f"median of {args.repeats} run(s). Phase columns: worker seconds.",
+            f"median of {args.repeats} run(s), robot {args.embodiment}. Phase columns: worker "
+            "seconds.",
             "",
             table(rows),
             "",

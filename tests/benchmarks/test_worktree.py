@@ -82,7 +82,7 @@ def bench():
 def fake_measure(calls: list, fail_in: Path | None = None):
     """bench_throughput.measure without generate.py: records the tree (and that it exists)."""
 
-    def measure(tree, task, episodes, seed, workers, render):
+    def measure(tree, task, episodes, seed, workers, render, embodiment="aloha_viperx"):
         calls.append((tree, tree.is_dir()))
         if tree == fail_in:
             raise RuntimeError("generate.py failed")

@@ -65,3 +65,40 @@ def test_ratio_table_pairs_by_checkout_when_head_moves_during_the_run(bench):
 
 def test_no_ratio_table_without_a_before_run(bench):
     assert bench.ratio_table([_row("new", "a", wall=20.0, physics=10.0)]) == ""
+
+
+def _fake_generate(manifest_dir: str, calls: list):
+    """A stand-in for subprocess.run of generate.py: records the command, writes one kept
+    30-frame episode's manifest under <out>/<task>/<manifest_dir>/."""
+    import json
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    def run(cmd, **kwargs):
+        calls.append(cmd)
+        opts = dict(a[2:].split("=", 1) for a in cmd if a.startswith("--") and "=" in a)
+        where = Path(opts["out"]) / opts["task"] / manifest_dir
+        where.mkdir(parents=True)
+        episode = {"success": True, "frames": 30, "timings": {"physics": 1.5, "planning": 0.5}}
+        manifest = {"config": {"fps": 15.0}, "episodes": [episode]}
+        (where / "manifest.json").write_text(json.dumps(manifest))
+        return SimpleNamespace(returncode=0, stderr="")
+
+    return run
+
+
+def test_measure_passes_another_robot_and_reads_its_settings_directory(bench, monkeypatch):
+    calls: list = []
+    monkeypatch.setattr(bench.subprocess, "run", _fake_generate("franka_pair", calls))
+    row = bench.measure(bench.ROOT, "jigsaw", 1, 0, 2, False, "franka_pair")
+    assert "--embodiment=franka_pair" in calls[0] and "--no-render" in calls[0]
+    assert (row["kept"], row["tried"], row["simulated"]) == (1, 1, 2.0)
+    assert row["split"] == {"physics": 1.5, "planning": 0.5}
+
+
+def test_measure_leaves_the_default_robot_to_generate(bench, monkeypatch):
+    calls: list = []
+    monkeypatch.setattr(bench.subprocess, "run", _fake_generate("default", calls))
+    bench.measure(bench.ROOT, "jigsaw", 1, 0, 1, True)
+    assert not any(a.startswith("--embodiment") for a in calls[0])
+    assert "--no-render" not in calls[0]
