@@ -1,7 +1,8 @@
 """Generation throughput: simulated seconds of kept demonstrations per wall second.
 
     python benchmarks/bench_throughput.py --tasks jigsaw,cook --episodes 4 --workers 1,2 \\
-        [--render yes|no|both] [--before REV] [--repeats 1] [--embodiment aloha_viperx] \\
+        [--render yes|no|both] [--before REV | --versus FIELD=VALUE] [--set FIELD=VALUE] \\
+        [--repeats 1] [--embodiment aloha_viperx] \\
         [--out benchmarks/bench_throughput.md]
 
 Every measurement is one run of ``scripts/generate.py`` as a user runs it (a fresh process, so
@@ -18,6 +19,9 @@ change. The 1-minute load average is recorded before every run; compare ratios w
 run, not figures across machines or days. With ``--before`` a second table gives, per task and
 setting, the ratio after/before of the whole run's rate and of the physics phase alone
 (simulated seconds per worker second spent stepping the plant), and their medians.
+``--versus FIELD=VALUE`` instead compares two settings of this checkout the same way (e.g.
+``station.cameras.renderer=gl`` against the default VTK): the ratios are with / without.
+``--set FIELD=VALUE`` applies to every run; ``--embodiment`` picks the robot.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -52,9 +57,10 @@ def measure(
     workers: int,
     render: bool,
     embodiment: str = DEFAULT_ROBOT,
+    settings: tuple[str, ...] = (),
 ) -> dict:
-    """One generate.py run in `tree` (on `embodiment`); its wall time, kept simulated seconds
-    and phase split."""
+    """One generate.py run in `tree` (on `embodiment`, each of `settings` a ``--set
+    FIELD=VALUE``); its wall time, kept simulated seconds and phase split."""
     out = Path(tempfile.mkdtemp(prefix="bench-throughput-"))
     cmd = [
         sys.executable,
@@ -70,6 +76,8 @@ def measure(
         cmd.append("--no-render")
     if embodiment != DEFAULT_ROBOT:
         cmd.append(f"--embodiment={embodiment}")
+    for setting in settings:
+        cmd += ["--set", setting]
     env = {**os.environ, "PYTHONPATH": str(tree)}
     load = os.getloadavg()[0]
     t0 = time.perf_counter()
@@ -113,11 +121,17 @@ def table(rows: list[dict]) -> str:
     for r in rows:
         split = "".join(f" {r['split'].get(p, 0.0):.1f} |" for p in phases)
         lines.append(
-            f"| `{r['commit']}` | {r['task']} | {'yes' if r['render'] else 'no'} | "
+            f"| {label_of(r)} | {r['task']} | {'yes' if r['render'] else 'no'} | "
             f"{r['workers']} | {r['kept']}/{r['tried']} | {r['simulated']:.1f} | "
             f"{r['wall']:.1f} | **{r['rate']:.2f}** |{split} {r['load']:.1f} |"
         )
     return "\n".join(lines)
+
+
+def label_of(row: dict) -> str:
+    """A row's commit, and the ``--versus`` settings it ran with."""
+    extra = row.get("versus", "")
+    return f"`{row['commit']}`" + (f" + {extra}" if extra else "")
 
 
 def physics_rate(row: dict) -> float | None:
@@ -129,15 +143,16 @@ def physics_rate(row: dict) -> float | None:
 def ratio_table(rows: list[dict]) -> str:
     """After/before ratios per (task, render, workers): whole run and physics phase.
 
-    Rows with ``before`` true come from the ``--before`` checkout; the others from this one,
+    Rows with ``before`` true come from the ``--before`` checkout (or ran without the
+    ``--versus`` settings); the others from this one (with them),
     whatever commit it was at when each was measured (a commit landing during a long run
     moves this checkout's HEAD, not what it measures)."""
     olds = {(r["task"], r["render"], r["workers"]): r for r in rows if r.get("before")}
     news = [r for r in rows if not r.get("before")]
     if not olds or not news:
         return ""
-    old = ", ".join(f"`{c}`" for c in dict.fromkeys(r["commit"] for r in olds.values()))
-    new = ", ".join(f"`{c}`" for c in dict.fromkeys(r["commit"] for r in news))
+    old = ", ".join(dict.fromkeys(label_of(r) for r in olds.values()))
+    new = ", ".join(dict.fromkeys(label_of(r) for r in news))
     lines = [
         f"After ({new}) / before ({old}):",
         "",
@@ -179,6 +194,29 @@ PHASE_ORDER = [
 ]
 
 
+@dataclass(frozen=True)
+class Arm:
+    """One side of a comparison: the package in `tree`, run with `settings` (``--set``) and
+    `versus` (the ``--versus`` settings, also passed with ``--set``); `reference` for the
+    side the ratios divide by."""
+
+    tree: Path
+    settings: tuple[str, ...]
+    versus: tuple[str, ...] = ()
+    reference: bool = False
+
+
+def arms_of(before: Path | None, settings: tuple[str, ...], versus: tuple[str, ...]) -> list[Arm]:
+    """What each task is measured with, in the order of the first repeat: the ``--before``
+    worktree then this checkout, or this checkout without then with the ``--versus`` settings,
+    or this checkout alone."""
+    if before is not None:
+        return [Arm(before, settings, reference=True), Arm(ROOT, settings)]
+    if versus:
+        return [Arm(ROOT, settings, reference=True), Arm(ROOT, settings + versus, versus)]
+    return [Arm(ROOT, settings)]
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--tasks", default="jigsaw", help="'all' or comma-separated task names")
@@ -199,8 +237,27 @@ def main() -> None:
         default=DEFAULT_ROBOT,
         help=f"the robot (default {DEFAULT_ROBOT}); --tasks all: the tasks it supports",
     )
+    parser.add_argument(
+        "--set",
+        dest="settings",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="a scenario setting for every run (generate.py --set); repeatable",
+    )
+    parser.add_argument(
+        "--versus",
+        action="append",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="also measure this checkout with these settings (repeatable; e.g. "
+        "station.cameras.renderer=gl), interleaved with the runs without them; the ratio "
+        "table gives with / without",
+    )
     parser.add_argument("--out", type=Path, help="markdown file to write (default: print)")
     args = parser.parse_args()
+    if args.before and args.versus:
+        parser.error("--before and --versus each make the comparison: give one of them")
 
     mode = "both" if args.no_render_too else args.render
     renders = {"yes": [True], "no": [False], "both": [True, False]}[mode]
@@ -211,33 +268,35 @@ def main() -> None:
         tasks = tasks_for_robot(args.embodiment)
     rows = []
     with expert_success.worktree(args.before or None, "bench-before-", ROOT) as before:
-        trees = [ROOT] if before is None else [before, ROOT]
+        arms = arms_of(before, tuple(args.settings), tuple(args.versus))
         for task in tasks:
             for render in renders:
                 for workers in (int(w) for w in args.workers.split(",")):
-                    runs: dict[Path, list[dict]] = {tree: [] for tree in trees}
+                    runs: dict[Arm, list[dict]] = {arm: [] for arm in arms}
                     for k in range(args.repeats):
-                        for tree in trees if k % 2 == 0 else trees[::-1]:
-                            runs[tree].append(
+                        for arm in arms if k % 2 == 0 else arms[::-1]:
+                            runs[arm].append(
                                 measure(
-                                    tree,
+                                    arm.tree,
                                     task,
                                     args.episodes,
                                     args.seed,
                                     workers,
                                     render,
                                     args.embodiment,
+                                    arm.settings,
                                 )
                             )
-                    for tree, results in runs.items():
+                    for arm, results in runs.items():
                         median = sorted(results, key=lambda r: r["rate"])[len(results) // 2]
                         row = {
                             **median,
                             "task": task,
                             "render": render,
                             "workers": workers,
-                            "commit": revision(tree),
-                            "before": tree == before,
+                            "commit": revision(arm.tree),
+                            "before": arm.reference,
+                            "versus": " ".join(arm.versus),
                             "rate": statistics.median(r["rate"] for r in results),
                         }
                         rows.append(row)
@@ -247,14 +306,15 @@ def main() -> None:
             f"Measured {datetime.now(UTC):%Y-%m-%d %H:%M} UTC on {platform.machine()}, "
             f"nproc = {os.cpu_count()}, Python {platform.python_version()}; "
             f"{args.episodes} kept episodes per run from seed {args.seed}, "
-            f"median of {args.repeats} run(s), robot {args.embodiment}. Phase columns: worker "
-            "seconds.",
+            f"median of {args.repeats} run(s), robot {args.embodiment}"
+            + "".join(f", --set {x}" for x in args.settings)
+            + ". Phase columns: worker seconds.",
             "",
             table(rows),
             "",
         ]
     )
-    if args.before:
+    if args.before or args.versus:
         text += "\n" + ratio_table(rows) + "\n"
     if args.out:
         args.out.write_text(text)

@@ -82,8 +82,8 @@ def bench():
 def fake_measure(calls: list, fail_in: Path | None = None):
     """bench_throughput.measure without generate.py: records the tree (and that it exists)."""
 
-    def measure(tree, task, episodes, seed, workers, render, embodiment="aloha_viperx"):
-        calls.append((tree, tree.is_dir()))
+    def measure(tree, task, episodes, seed, workers, render, embodiment="aloha_viperx", sets=()):
+        calls.append((tree, tree.is_dir()) + ((tuple(sets),) if sets else ()))
         if tree == fail_in:
             raise RuntimeError("generate.py failed")
         return {
@@ -146,3 +146,29 @@ def test_throughput_before_git_cannot_check_out_is_named(bench, tmp, monkeypatch
     with pytest.raises(RuntimeError, match="git worktree add no-such-revision failed: fatal"):
         bench.main()
     assert list(tmp.iterdir()) == []
+
+
+def test_throughput_versus_measures_this_checkout_without_then_with_the_settings(
+    bench, tmp, monkeypatch
+):
+    calls = []
+    monkeypatch.setattr(bench, "measure", fake_measure(calls))
+    gl = "station.cameras.renderer=gl"
+    monkeypatch.setattr(
+        sys, "argv", argv(tmp / "out.md", "--set", "station.time_step=0.004", "--versus", gl)
+    )
+    bench.main()
+    base = ("station.time_step=0.004",)
+    assert calls == [(bench.ROOT, True, base), (bench.ROOT, True, (*base, gl))]
+    text = (tmp / "out.md").read_text()
+    head = git(bench.ROOT, "rev-parse", "--short", "HEAD")
+    assert f"After (`{head}` + {gl}) / before (`{head}`)" in text
+    assert "--set station.time_step=0.004" in text
+    assert "| jigsaw | yes | 1 | 1.00x | 1.00x |" in text
+
+
+def test_throughput_refuses_before_and_versus_together(bench, tmp, monkeypatch):
+    monkeypatch.setattr(bench, "measure", fake_measure([]))
+    monkeypatch.setattr(sys, "argv", argv(tmp / "out.md", "--before", "HEAD", "--versus", "a=1"))
+    with pytest.raises(SystemExit):
+        bench.main()

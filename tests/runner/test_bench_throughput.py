@@ -90,8 +90,10 @@ def _fake_generate(manifest_dir: str, calls: list):
 def test_measure_passes_another_robot_and_reads_its_settings_directory(bench, monkeypatch):
     calls: list = []
     monkeypatch.setattr(bench.subprocess, "run", _fake_generate("franka_pair", calls))
-    row = bench.measure(bench.ROOT, "jigsaw", 1, 0, 2, False, "franka_pair")
+    gl = "station.cameras.renderer=gl"
+    row = bench.measure(bench.ROOT, "jigsaw", 1, 0, 2, False, "franka_pair", (gl,))
     assert "--embodiment=franka_pair" in calls[0] and "--no-render" in calls[0]
+    assert calls[0][-2:] == ["--set", gl]
     assert (row["kept"], row["tried"], row["simulated"]) == (1, 1, 2.0)
     assert row["split"] == {"physics": 1.5, "planning": 0.5}
 
