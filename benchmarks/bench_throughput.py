@@ -128,6 +128,32 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def totals(rows: list[dict]) -> str:
+    """Per compared side (commit and settings): all its runs together - kept simulated seconds
+    over the summed wall time, and each phase's share of the summed worker time."""
+    lines = []
+    for label in dict.fromkeys(label_of(r) for r in rows):
+        mine = [r for r in rows if label_of(r) == label]
+        simulated = sum(r["simulated"] for r in mine)
+        wall = sum(r["wall"] for r in mine)
+        split: dict[str, float] = {}
+        for r in mine:
+            for phase, seconds in r["split"].items():
+                split[phase] = split.get(phase, 0.0) + seconds
+        worker = sum(split.values())
+        shares = ", ".join(
+            f"{p} {100 * split[p] / worker:.0f} %"
+            for p in sorted(split, key=PHASE_ORDER.index)
+            if worker > 0 and split[p] / worker >= 0.005
+        )
+        lines.append(
+            f"- {label}, {len(mine)} runs: {simulated:.1f} simulated s of kept episodes in "
+            f"{wall:.1f} wall s = **{simulated / wall:.2f} simulated s per wall s**; worker "
+            f"time {worker:.1f} s: {shares}"
+        )
+    return "\n".join(lines)
+
+
 def label_of(row: dict) -> str:
     """A row's commit, and the ``--versus`` settings it ran with."""
     extra = row.get("versus", "")
@@ -311,6 +337,10 @@ def main() -> None:
             + ". Phase columns: worker seconds.",
             "",
             table(rows),
+            "",
+            "All runs together:",
+            "",
+            totals(rows),
             "",
         ]
     )

@@ -104,3 +104,18 @@ def test_measure_leaves_the_default_robot_to_generate(bench, monkeypatch):
     bench.measure(bench.ROOT, "jigsaw", 1, 0, 1, True)
     assert not any(a.startswith("--embodiment") for a in calls[0])
     assert "--no-render" not in calls[0]
+
+
+def test_totals_sum_the_runs_of_each_side(bench):
+    rows = [
+        _row("old", "a", wall=40.0, physics=30.0),
+        _row("old", "b", wall=60.0, physics=6.0),
+        _row("new", "a", wall=20.0, physics=6.0),
+    ]
+    lines = bench.totals(rows).splitlines()
+    assert lines[0].startswith("- `old`, 2 runs: 40.0 simulated s of kept episodes in 100.0 wall s")
+    assert "**0.40 simulated s per wall s**" in lines[0]
+    assert "worker time 40.0 s: planning 10 %, physics 90 %" in lines[0]
+    assert (
+        "**1.00 simulated s per wall s**" in lines[1] and "planning 25 %, physics 75 %" in lines[1]
+    )
