@@ -199,12 +199,6 @@ class SceneObject(BaseModel):
         "(benchmarks/bench_flat_landing.md)",
     )
 
-    part_friction: dict[int, float] = Field(
-        default_factory=dict,
-        description="friction of some parts (indices in the shape's primitives) in place of "
-        "friction: a pan's wall that the fingers pinch, rougher than its non-stick floor",
-    )
-
     contact_margin: float | None = Field(
         None,
         ge=0,
@@ -229,17 +223,6 @@ class SceneObject(BaseModel):
         bad = [i for i in self.compliant_parts if not 0 <= i < count]
         if bad:
             raise ValueError(f"{self.name}: compliant_parts {bad} not in 0..{count - 1}")
-        return self
-
-    @model_validator(mode="after")
-    def _part_friction(self) -> SceneObject:
-        count = len(self.shape.primitives())
-        bad = [i for i in self.part_friction if not 0 <= i < count]
-        if bad:
-            raise ValueError(f"{self.name}: part_friction parts {bad} not in 0..{count - 1}")
-        low = {i: mu for i, mu in self.part_friction.items() if mu <= 0}
-        if low:
-            raise ValueError(f"{self.name}: part_friction {low} must be > 0")
         return self
 
     @model_validator(mode="after")
@@ -277,10 +260,6 @@ def object_sdf(obj: SceneObject, rigid: bool = False) -> str:
         stiff = props.model_copy(update={"hydroelastic": "rigid"})
         base = obj.shape.base_parts()
         part_props = [props if i in base else stiff for i in range(len(prims))]
-    part_props = [
-        c.model_copy(update={"friction": obj.part_friction[i]}) if i in obj.part_friction else c
-        for i, c in enumerate(part_props)
-    ]
     mass, com, inertia = inertial_of(prims, obj.mass)
     body = [f'<link name="{obj.name}">', sdf_inertial(mass, com, inertia)]
     if obj.collide:

@@ -61,21 +61,12 @@ ROLL_RADIUS, ROLL_LENGTH, ROLL_MASS = 0.02, 0.08, 0.025
 #: throw); not re-measured since the throw turns the roll across the flight.
 ROLL_YAW = (0.15, 0.45)
 #: The skillet: a shallow pan with straight 12 mm walls, held by its rim (see the class doc).
-#: The walls stand on the base disc: only the disc touches the table (one contact surface at
-#: rest instead of 21).
-SKILLET = BowlShape(
-    radius=0.10, base_radius=0.10, height=0.045, wall=0.012, segments=20, walls_on_base=True
-)
+SKILLET = BowlShape(radius=0.10, base_radius=0.10, height=0.045, wall=0.012, segments=20)
 SKILLET_MASS = 0.12
 #: Non-stick: the rolls slide off the pan's inside once it is tipped past ~114 degrees (Drake
 #: combines two friction coefficients as 2ab/(a+b): 0.45 against a roll at 0.9). The pan sags
 #: ~10 degrees in the rim grasp when tipped, so a planned 2.3 rad tilt gives ~122 degrees.
 SKILLET_FRICTION = 0.3
-#: The walls (the rim the fingers pinch) are not non-stick: friction 1.0 (1.0 against the
-#: pads, 0.45 with the floor's 0.3). The jaw pinches the wall with its axis radial, and only
-#: the pads' friction keeps the pan from turning about that axis: at 0.3 the hold turned
-#: 20-27 deg under 0.003 rad of action noise (benchmarks/noise_sweep.md, cook).
-SKILLET_WALL_FRICTION = 1.0
 #: Where the rolls land in the pan: short throws drop them with their long axis along the
 #: flight (+x; ``toss(long_axis="along")``: the thrower's fingers then close across the flight,
 #: clear of the catcher's hand on the far rim), so they come to lie side by side across it.
@@ -230,26 +221,26 @@ PARKED = np.array([0.0, 2.0, -2.0])
 class Cook(Task):
     """Toss two bread rolls into a skillet, shake it over the stove and serve onto a plate.
 
-    Description: two bread rolls (8 x 4 x 4 cm blocks, 25 g) wait on the left at x in [-0.28,
-    -0.20], y in [-0.20, 0.05]; a skillet with a non-stick floor (a shallow 20 cm pan with
-    straight 12 mm walls, 4.5 cm high, 120 g, friction 0.3 on its floor and 1.0 on its walls)
-    stands on the right at x in [0.15, 0.25], y in [-0.15, -0.05]; a static 24 cm plate with a
-    low rim lies at x in [-0.05, -0.02], y in [0.03, 0.06] (shifted toward the robot from y in
-    [0.15, 0.20], out of the right arm's reach with the pan); a red 10 cm square stove is fixed
-    at the reference's spot (-0.055, -0.055). The right arm lifts the skillet by its rim; the
-    left arm picks a roll. Each throw is short (TASKS.md): the roll leaves the hand at most 0.15
-    m above the pan's rim, the left TCP within 0.06 m (horizontally) of where the pan catches,
-    over the stove; the release (on the control grid, with a planned velocity: ruckig with a
-    non-zero target velocity, 0.2-0.8 m/s toward +x, the roll's long side along the flight) and
-    the pan's arrival, carried in level by the right arm in the same motion, are planned
-    together. The second roll is aimed beside the first as measured in the pan (a roll that came
-    to lie on the other or missed is picked and thrown again; if the catcher's hand is in the
-    way, the catcher first sets the skillet down on the table, lets go and lifts it again once
-    the thrower has the roll). Then the right arm shakes the skillet +-5 cm twice while the left
-    arm retreats, from the shake's start, to a stand-off just clear of it (not home), where it
-    stays while the right arm tips the skillet about its rim over the plate (held from the pan's
-    far side where the arm reaches it, the lip lowered toward the plate as it tips past 90
-    degrees).
+    Description: two bread rolls (8 x 4 x 4 cm blocks, 25 g) wait on the left at
+    x in [-0.28, -0.20], y in [-0.20, 0.05]; a non-stick skillet (a shallow 20 cm pan with
+    straight 12 mm walls, 4.5 cm high, 120 g, friction 0.3) stands on the right at
+    x in [0.15, 0.25], y in [-0.15, -0.05]; a static 24 cm plate with a low rim lies at
+    x in [-0.05, -0.02], y in [0.03, 0.06] (shifted toward the robot from y in [0.15, 0.20],
+    out of the right arm's reach with the pan); a red 10 cm square stove is fixed at the
+    reference's spot (-0.055, -0.055). The right arm lifts the skillet by its rim; the left arm
+    picks a roll. Each throw is short (TASKS.md): the roll leaves the hand at most 0.15 m above
+    the pan's rim, the left TCP within 0.06 m (horizontally) of where the pan catches, over
+    the stove; the release (on the control grid, with a planned velocity: ruckig with a
+    non-zero target velocity, 0.2-0.8 m/s toward +x, the roll's long side along the flight)
+    and the pan's arrival, carried in level by the right arm in the same motion, are planned
+    together. The second roll is aimed beside the first as measured in the pan (a roll that
+    came to lie on the other or missed is picked and thrown again; if the catcher's hand is in
+    the way, the catcher first sets the skillet down on the table, lets go and lifts it again
+    once the thrower has the roll). Then the right arm shakes the skillet +-5 cm twice while
+    the left arm retreats, from the shake's start, to a stand-off just clear of it (not
+    home), where it stays while the right arm tips the skillet about its rim over the plate
+    (held from the pan's far side where the arm reaches it, the lip lowered toward the plate
+    as it tips past 90 degrees).
 
     The skillet is a rim-held bowl, not a pan with a handle bar: ``skills.toss`` catches with a
     ``BowlShape`` held by its rim, and a straight 12 mm wall is what holds level in the grip
@@ -328,7 +319,6 @@ class Cook(Task):
                 color=(0.18, 0.18, 0.2, 1.0),
                 mass=SKILLET_MASS,
                 friction=SKILLET_FRICTION,
-                part_friction=dict.fromkeys(range(1, SKILLET.segments + 1), SKILLET_WALL_FRICTION),
                 pose=Pose(xyz=(skillet_xy[0], skillet_xy[1], TABLE_TOP)),
             ),
             *rolls,

@@ -291,29 +291,6 @@ def test_a_fixed_object_may_have_compliant_parts():
         SceneObject(name="b", shape=shape, fixed=True, compliant_parts=(5,))
 
 
-def test_part_friction_sets_the_named_parts_friction_only():
-    from bicoord_drake.models.objects import object_sdf
-    from bicoord_drake.tasks.cook import SKILLET, SKILLET_FRICTION, SKILLET_WALL_FRICTION
-
-    pan = SceneObject(
-        name="pan", shape=SKILLET, friction=0.3, part_friction={1: 1.0, 2: 1.0}, mass=0.1
-    )
-    parts = object_sdf(pan).split("<collision ")[1:]
-    assert "<drake:mu_static>0.3</drake:mu_static>" in parts[0]  # the floor
-    assert all("<drake:mu_static>1</drake:mu_static>" in p for p in parts[1:3])
-    assert all("<drake:mu_static>0.3</drake:mu_static>" in p for p in parts[3:])
-    with pytest.raises(ValidationError, match=r"\[21\] not in 0..20"):
-        SceneObject(name="b", shape=SKILLET, part_friction={21: 1.0})
-    with pytest.raises(ValidationError, match="must be > 0"):
-        SceneObject(name="b", shape=SKILLET, part_friction={1: 0.0})
-    # cook's skillet: a non-stick floor, rough walls (the rim the fingers pinch)
-    from bicoord_drake.tasks import get_task
-
-    (skillet,) = (o for o in get_task("cook").sample_scene(0).objects if o.name == "skillet")
-    assert skillet.friction == SKILLET_FRICTION
-    assert skillet.part_friction == dict.fromkeys(range(1, 21), SKILLET_WALL_FRICTION)
-
-
 def _bounces(compliant: bool) -> list[float]:
     """Highest the block rose above where it rests on clean_table's bin floor (m) after
     landing, for each of DROP_HEIGHTS, the floor compliant or rigid."""
