@@ -87,6 +87,11 @@ XY_TOL = 0.02
 #: is lifted this high after the grasp.
 GRIP_FROM_TIP = 0.20
 GRIP_BACK = GRIP_FROM_TIP - ROLLER_LENGTH[1] / 2
+#: Where no upright grasp leaves a push that plans (the hand, GRIP_FROM_TIP behind the tip,
+#: would touch the top plate's edge at the push's end: the Franka Hand, 2-5 mm), the grasps
+#: tilted about their finger axis by these angles (rad), the hand leaning back toward +x away
+#: from the shelf, are tried in turn.
+GRIP_PITCHES = (math.radians(15), math.radians(30))
 TIP_CLEARANCE = 0.007
 LIFT = 0.08
 #: The push: the roller's axis this high above the table (below the cube's middle: the
@@ -252,8 +257,7 @@ class FetchBlockWithRoller(Task):
 
         # ---- stage 1: right grasps the roller and pushes the cube out; meanwhile the left
         # comes to the pregrasp above where the cube comes out, timed to arrive as it does
-        right = pick(ctx, "right", ROLLER, grasps=roller_grasps(ctx), lift=LIFT)
-        push_steps = _push_steps(ctx)
+        right, push_steps = _pick_for_push(ctx)
         left = move_tcp(ctx, "left", exit_pregrasp(ctx), label="above the exit")
         left = left.stretched(right.num_steps + push_steps - ctx.steps(PUSH_MARGIN))
         left, rest = split_at(left, right.num_steps - 1)
@@ -336,6 +340,41 @@ def roller_grasps(ctx: SkillContext) -> list[Grasp]:
     axis = X_WO.rotation().col(2)
     shift = GRIP_BACK * math.copysign(1.0, axis[0]) * axis
     return [_shifted(g, X_WO, shift) for g in grasps]
+
+
+def pitched(g: Grasp, angle: float, pregrasp_distance: float) -> Grasp:
+    """`g` turned by `angle` about its finger axis through the TCP, in the sense that leans the
+    hand back toward +x (its approach then points toward -x, the shelf); the pregrasp
+    `pregrasp_distance` back along the new approach."""
+    R = g.X_WG.rotation()
+    turn = RotationMatrix(AngleAxis(angle, R.col(1)))
+    if (turn @ R).col(0)[0] > 0:
+        turn = turn.inverse()
+    R_new = turn @ R
+    p = g.X_WG.translation()
+    X_WG = RigidTransform(R_new, p)
+    X_WPre = RigidTransform(R_new, p - pregrasp_distance * R_new.col(0))
+    X_OG = g.X_OG @ g.X_WG.inverse() @ X_WG
+    return replace(g, X_WG=X_WG, X_WPre=X_WPre, X_OG=X_OG)
+
+
+def _pick_for_push(ctx: SkillContext) -> tuple[ArmPlan, int]:
+    """The right's pick of the roller and the control steps of the push planned from it: the
+    upright grasps first (``roller_grasps``), then each tilted by GRIP_PITCHES, until the push
+    from the grasp plans. Raises the upright grasps' error when none does."""
+    upright = roller_grasps(ctx)
+    first: PlanningError | None = None
+    back = GraspParams().pregrasp_distance
+    tilted = [[pitched(g, angle, back) for g in upright] for angle in GRIP_PITCHES]
+    for grasps in (upright, *tilted):
+        try:
+            with ctx.transaction():
+                right = pick(ctx, "right", ROLLER, grasps=grasps, lift=LIFT)
+                return right, _push_steps(ctx)
+        except PlanningError as err:
+            first = first or err
+    assert first is not None
+    raise first
 
 
 def _shifted(g: Grasp, X_WO: RigidTransform, shift: np.ndarray) -> Grasp:
