@@ -346,14 +346,14 @@ def pitched(g: Grasp, angle: float, pregrasp_distance: float) -> Grasp:
     """`g` turned by `angle` about its finger axis through the TCP, in the sense that leans the
     hand back toward +x (its approach then points toward -x, the shelf); the pregrasp
     `pregrasp_distance` back along the new approach."""
-    R = g.X_WG.rotation()
-    turn = RotationMatrix(AngleAxis(angle, R.col(1)))
-    if (turn @ R).col(0)[0] > 0:
-        turn = turn.inverse()
+    R = g.X_WG.rotation().matrix()  # copies: AngleAxis keeps no reference to its axis
+    turn = AngleAxis(angle, np.array(R[:, 1])).rotation()
+    if (turn @ R)[0, 0] > 0:
+        turn = turn.T
     R_new = turn @ R
-    p = g.X_WG.translation()
-    X_WG = RigidTransform(R_new, p)
-    X_WPre = RigidTransform(R_new, p - pregrasp_distance * R_new.col(0))
+    p = np.array(g.X_WG.translation())
+    X_WG = RigidTransform(RotationMatrix(R_new), p)
+    X_WPre = RigidTransform(RotationMatrix(R_new), p - pregrasp_distance * R_new[:, 0])
     X_OG = g.X_OG @ g.X_WG.inverse() @ X_WG
     return replace(g, X_WG=X_WG, X_WPre=X_WPre, X_OG=X_OG)
 

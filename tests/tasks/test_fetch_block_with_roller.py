@@ -172,6 +172,25 @@ def test_the_roller_is_grasped_behind_its_middle(scene):
         assert g.approach[2] < -0.99  # from above
 
 
+@pytest.mark.parametrize("angle", fb.GRIP_PITCHES)
+def test_a_pitched_roller_grasp_leans_the_hand_back_from_the_shelf(scene, angle):
+    from bicoord_drake.planning.model import PlanningModel
+    from bicoord_drake.planning.skills import SkillContext
+
+    ctx = SkillContext(PlanningModel(scene))
+    X_WO = ctx.model.object_pose(fb.ROLLER)
+    for g in fb.roller_grasps(ctx):
+        t = fb.pitched(g, angle, 0.08)
+        assert np.allclose(t.X_WG.translation(), g.X_WG.translation())  # the same grip point
+        assert np.allclose(t.finger_axis, g.finger_axis)  # still across the roller
+        assert t.approach[0] == pytest.approx(-math.sin(angle), abs=0.02)  # toward the shelf
+        assert t.approach[2] == pytest.approx(-math.cos(angle), abs=0.02)
+        above = t.X_WG.translation() - 0.1 * t.approach  # the hand's body, behind the TCP
+        assert above[0] > g.X_WG.translation()[0] + 0.09 * math.sin(angle)  # leans to +x
+        assert np.allclose(t.X_WPre.translation(), t.X_WG.translation() - 0.08 * t.approach)
+        assert np.allclose((X_WO @ t.X_OG).GetAsMatrix4(), t.X_WG.GetAsMatrix4())
+
+
 def test_roller_tool_puts_the_tip_on_the_point_level_along_minus_x():
     from pydrake.all import RigidTransform, RollPitchYaw
 
