@@ -567,7 +567,10 @@ def test_an_unknown_before_exits_2_naming_it(bes, tmp_path, monkeypatch, capsys)
     assert not out.exists() and not (tmp_path / "work").exists()
 
 
-def test_before_runs_in_a_worktree_of_the_revision(bes, tmp_path, faked, fake_worktree):
+def test_before_runs_in_a_worktree_of_the_revision(
+    bes, tmp_path, faked, fake_worktree, monkeypatch
+):
+    monkeypatch.delenv("PYTHONPATH", raising=False)  # what this test's own caller set
     ckpt = tmp_path / "ckpt"
     ckpt.mkdir()
     args = bes.parse_args(run_argv(tmp_path, "--checkpoint", str(ckpt), "--before", "HEAD~1"))
