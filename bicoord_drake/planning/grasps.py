@@ -229,8 +229,14 @@ def pitched(grasp: Grasp, X_WO: RigidTransform, angle: float) -> Grasp:
     if np.linalg.norm(k) < 1e-9:
         raise PlanningError("no_grasp", "a vertical approach has no pitch down")
     turn = RotationMatrix(AngleAxis(angle, k / np.linalg.norm(k)))
+    return turned(grasp, X_WO, turn)
+
+
+def turned(grasp: Grasp, X_WO: RigidTransform, turn: RotationMatrix) -> Grasp:
+    """`grasp` turned by `turn` (a rotation in the world frame) about its TCP: the grip point
+    stays, the pregrasp keeps its distance, along the new approach."""
     p = grasp.X_WG.translation()
-    X_WG = RigidTransform(turn @ R, p)
+    X_WG = RigidTransform(turn @ grasp.X_WG.rotation(), p)
     d = float(np.linalg.norm(p - grasp.X_WPre.translation()))
     X_WPre = RigidTransform(X_WG.rotation(), p - d * X_WG.rotation().col(0))
     return Grasp(grasp.kind, X_WG, X_WPre, X_WO.inverse() @ X_WG, grasp.width, grasp.score)

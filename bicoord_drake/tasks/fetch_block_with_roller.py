@@ -25,6 +25,7 @@ from bicoord_drake.planning.grasps import (
     GraspParams,
     arm_base,
     grasp_candidates,
+    turned,
     turned_onto,
 )
 from bicoord_drake.planning.skills import (
@@ -342,20 +343,14 @@ def roller_grasps(ctx: SkillContext) -> list[Grasp]:
     return [_shifted(g, X_WO, shift) for g in grasps]
 
 
-def pitched(g: Grasp, angle: float, pregrasp_distance: float) -> Grasp:
-    """`g` turned by `angle` about its finger axis through the TCP, in the sense that leans the
-    hand back toward +x (its approach then points toward -x, the shelf); the pregrasp
-    `pregrasp_distance` back along the new approach."""
-    R = g.X_WG.rotation().matrix()  # copies: AngleAxis keeps no reference to its axis
-    turn = AngleAxis(angle, np.array(R[:, 1])).rotation()
+def leaning_back(g: Grasp, X_WO: RigidTransform, angle: float) -> Grasp:
+    """`g` turned by `angle` about its finger axis through the TCP (``grasps.turned``), in the
+    sense that leans the hand back toward +x: its approach then points toward -x, the shelf."""
+    R = g.X_WG.rotation().matrix()  # a copy: .col() of a temporary is a view of freed memory
+    turn = AngleAxis(angle, R[:, 1]).rotation()
     if (turn @ R)[0, 0] > 0:
         turn = turn.T
-    R_new = turn @ R
-    p = np.array(g.X_WG.translation())
-    X_WG = RigidTransform(RotationMatrix(R_new), p)
-    X_WPre = RigidTransform(RotationMatrix(R_new), p - pregrasp_distance * R_new[:, 0])
-    X_OG = g.X_OG @ g.X_WG.inverse() @ X_WG
-    return replace(g, X_WG=X_WG, X_WPre=X_WPre, X_OG=X_OG)
+    return turned(g, X_WO, RotationMatrix(turn))
 
 
 def _pick_for_push(ctx: SkillContext) -> tuple[ArmPlan, int]:
@@ -364,8 +359,8 @@ def _pick_for_push(ctx: SkillContext) -> tuple[ArmPlan, int]:
     from the grasp plans. Raises the upright grasps' error when none does."""
     upright = roller_grasps(ctx)
     first: PlanningError | None = None
-    back = GraspParams().pregrasp_distance
-    tilted = [[pitched(g, angle, back) for g in upright] for angle in GRIP_PITCHES]
+    X_WO = ctx.model.object_pose(ROLLER)
+    tilted = [[leaning_back(g, X_WO, angle) for g in upright] for angle in GRIP_PITCHES]
     for grasps in (upright, *tilted):
         try:
             with ctx.transaction():

@@ -180,7 +180,7 @@ def test_a_pitched_roller_grasp_leans_the_hand_back_from_the_shelf(scene, angle)
     ctx = SkillContext(PlanningModel(scene))
     X_WO = ctx.model.object_pose(fb.ROLLER)
     for g in fb.roller_grasps(ctx):
-        t = fb.pitched(g, angle, 0.08)
+        t = fb.leaning_back(g, X_WO, angle)
         assert np.allclose(t.X_WG.translation(), g.X_WG.translation())  # the same grip point
         assert np.allclose(t.finger_axis, g.finger_axis)  # still across the roller
         assert t.approach[0] == pytest.approx(-math.sin(angle), abs=0.02)  # toward the shelf
