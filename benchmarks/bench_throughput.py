@@ -107,12 +107,6 @@ def measure(
     }
 
 
-def revision(tree: Path) -> str:
-    return subprocess.run(
-        ["git", "rev-parse", "--short", "HEAD"], cwd=tree, capture_output=True, text=True
-    ).stdout.strip()
-
-
 def table(rows: list[dict]) -> str:
     phases = sorted({p for r in rows for p in r["split"]}, key=PHASE_ORDER.index)
     head = "| commit | task | render | workers | kept/tried | sim s | wall s | **sim s / wall s** |"
@@ -320,7 +314,7 @@ def main() -> None:
                             "task": task,
                             "render": render,
                             "workers": workers,
-                            "commit": revision(arm.tree),
+                            "commit": expert_success.short_commit_of("HEAD", arm.tree),
                             "before": arm.reference,
                             "versus": " ".join(arm.versus),
                             "rate": statistics.median(r["rate"] for r in results),
